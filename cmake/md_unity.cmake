@@ -1,0 +1,23 @@
+# The Unity library the tests link: a real checkout when UNITY_ROOT is given,
+# else the project's own stand-in (tests/unity_standin, a subset of Unity's API).
+if(UNITY_ROOT)
+    if(NOT EXISTS "${UNITY_ROOT}/src/unity.c")
+        message(FATAL_ERROR "UNITY_ROOT=${UNITY_ROOT} has no src/unity.c")
+    endif()
+    add_library(unity STATIC "${UNITY_ROOT}/src/unity.c")
+    target_include_directories(unity PUBLIC "${UNITY_ROOT}/src")
+    target_compile_definitions(unity PUBLIC UNITY_INCLUDE_DOUBLE UNITY_SUPPORT_64)
+    if(MD_TARGET_MCU)
+        target_compile_definitions(unity PUBLIC "UNITY_OUTPUT_CHAR(c)=unity_standin_putchar(c)"
+            "UNITY_OUTPUT_CHAR_HEADER_DECLARATION=unity_standin_putchar(int)")
+    endif()
+    message(STATUS "Unity: real checkout at ${UNITY_ROOT}")
+else()
+    add_library(unity STATIC ${PROJECT_SOURCE_DIR}/tests/unity_standin/unity.c)
+    target_include_directories(unity PUBLIC ${PROJECT_SOURCE_DIR}/tests/unity_standin)
+    target_link_libraries(unity PRIVATE md_warnings)
+    if(NOT MD_TARGET_MCU)
+        target_sources(unity PRIVATE ${PROJECT_SOURCE_DIR}/tests/unity_standin/unity_output_host.c)
+    endif()
+    message(STATUS "Unity: project stand-in (pass -DUNITY_ROOT=<checkout> for the real one)")
+endif()
