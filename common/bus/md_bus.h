@@ -5,6 +5,12 @@
 /// Semantics are those of a CAN bus: every frame a node sends is seen by every
 /// *other* node on the bus (not echoed to the sender), in send order per
 /// sender. Receive never blocks longer than the timeout asked for.
+///
+/// Memory: no bus allocates. The socket buses keep their state inside the
+/// md_bus_t (`sock`); the in-process bus uses fixed static tables sized by the
+/// MD_BUS_INPROC_* constants below. `impl` points into one of those, so an open
+/// md_bus_t must stay at the same address (never copy or move it) until
+/// md_bus_close(). See docs/bus.md for the wire format and the `auto` rule.
 #ifndef MD_BUS_H
 #define MD_BUS_H
 
@@ -12,6 +18,18 @@
 #include <stdint.h>
 
 #include "md_frame.h"
+
+/// UDP bus: administratively scoped group (RFC 2365), joined on loopback only.
+#define MD_BUS_UDP_GROUP "239.71.0.1"
+#define MD_BUS_UDP_PORT_DEFAULT 57731u
+/// In-process bus: frames each endpoint can queue before it overflows (power of 2).
+#define MD_BUS_INPROC_QUEUE_LEN 4096u
+/// In-process bus: endpoints open at once in one process, over all buses.
+#define MD_BUS_INPROC_MAX_ENDPOINTS 8u
+/// In-process bus: distinct bus names open at once in one process.
+#define MD_BUS_INPROC_MAX_BUSES 4u
+/// Longest in-process bus name (without "inproc:").
+#define MD_BUS_INPROC_NAME_MAX 24u
 
 typedef enum {
     MD_BUS_SOCKETCAN = 1,   ///< raw CAN FD socket on a named interface (vcan0, can0)
@@ -23,21 +41,44 @@ typedef enum {
 typedef struct {
     uint64_t tx_frames, rx_frames;
     uint64_t tx_errors;        ///< send failed (reported to the caller too)
-    uint64_t rx_malformed;     ///< datagram/frame that failed validation
-    uint64_t rx_overflow;      ///< in-process queue full: frames lost
+    uint64_t rx_malformed;     ///< datagram/frame that failed validation (or cannot be
+                               ///< represented: SocketCAN RTR/error frames)
+    uint64_t rx_overflow;      ///< frames lost because this endpoint's queue was full:
+                               ///< in-process ring, or the kernel socket buffer
+                               ///< (SO_RXQ_OVFL) for SocketCAN and UDP
 } md_bus_stats_t;
+
+/// State of the socket buses (SocketCAN, UDP), kept inside md_bus_t so that no
+/// bus needs the heap or a global pool. Private to common/bus.
+typedef struct {
+    int fd;                    ///< the socket; -1 when closed or not a socket bus
+    uint32_t sender_id;        ///< UDP: random non-zero id stamped on our datagrams
+    uint32_t tx_seq;           ///< UDP: sequence number of our next datagram
+    uint32_t kernel_drops;     ///< last cumulative SO_RXQ_OVFL count seen
+    uint16_t port;             ///< UDP: the group's port
+    uint8_t fd_capable;        ///< SocketCAN: interface MTU allows CAN FD frames
+} md_bus_sock_t;
 
 typedef struct md_bus md_bus_t;
 
 /// Operations of one bus endpoint (one node's connection).
 typedef struct {
-    /// Sends one frame. Returns 0, or a negative errno-style code.
+    /// Sends one frame. Returns 0, or a negative errno-style code: -EINVAL if
+    /// !md_frame_valid(frame), -EMSGSIZE for an FD frame on a classic-only
+    /// interface, -EAGAIN if the socket stayed full, other -errno from the OS.
+    /// Every failure also counts in stats.tx_errors. Success means "on the bus",
+    /// not "received": like CAN, the sender cannot know who read the frame.
     int (*send)(md_bus_t *bus, const md_frame_t *frame);
-    /// Receives one frame, waiting at most timeout_us (0 = poll).
-    /// Returns 1 with *frame filled, 0 on timeout, negative on error.
+    /// Receives one frame, waiting at most timeout_us (0 = poll; negative is
+    /// -EINVAL). Returns 1 with *frame filled (always md_frame_valid), 0 on
+    /// timeout, negative on error. Invalid input is counted and skipped, never
+    /// returned. The in-process bus never waits (single thread: nothing can
+    /// arrive while it would wait).
     int (*receive)(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us);
-    /// File descriptor usable with poll(), or -1 (in-process).
+    /// File descriptor usable with poll(), or -1 (in-process, or closed).
     int (*fd)(const md_bus_t *bus);
+    /// Releases the endpoint; safe to call twice. Afterwards every operation
+    /// returns -EBADF.
     void (*close)(md_bus_t *bus);
 } md_bus_ops_t;
 
@@ -46,14 +87,20 @@ struct md_bus {
     md_bus_kind_t kind;
     md_bus_stats_t stats;
     char name[32];             ///< "vcan0", "udp:239.71.0.1:57731", "inproc:<n>"
-    void *impl;                ///< transport's private state
+    void *impl;                ///< transport's private state (&sock, or a static inproc slot)
+    md_bus_sock_t sock;        ///< socket buses' state (see md_bus_sock_t)
 };
 
 /// Opens a bus by spec: "vcan0"/"can0"/any interface name (SocketCAN),
 /// "udp" or "udp:<port>" (multicast on loopback), "inproc:<name>" (shared by
 /// every endpoint opened with the same name in this process), or "auto"
-/// (SocketCAN on vcan0 if that interface exists, else UDP). Writes a one-line
-/// explanation of the choice into `why` (may be NULL). Returns 0 or -errno.
+/// (SocketCAN on vcan0 if that interface exists and AF_CAN works, else UDP on
+/// the default port). Writes a one-line explanation of the choice, or of the
+/// failure, into `why` (may be NULL; truncated to why_len). Returns 0 or -errno:
+/// -EINVAL bad spec, -ENAMETOOLONG, -EAFNOSUPPORT no SocketCAN in this kernel,
+/// -ENODEV no such (CAN) interface, -ENETDOWN interface down, -ENOSPC in-process
+/// tables full, or the failing socket call's errno. On failure `bus` is left
+/// closed (operations return -EBADF). O(1) except the in-process name lookup.
 int md_bus_open(md_bus_t *bus, const char *spec, char *why, size_t why_len);
 
 static inline int md_bus_send(md_bus_t *bus, const md_frame_t *f) { return bus->ops->send(bus, f); }
@@ -61,6 +108,7 @@ static inline int md_bus_receive(md_bus_t *bus, md_frame_t *f, int64_t timeout_u
 {
     return bus->ops->receive(bus, f, timeout_us);
 }
+static inline int md_bus_fd(const md_bus_t *bus) { return bus->ops->fd(bus); }
 static inline void md_bus_close(md_bus_t *bus) { bus->ops->close(bus); }
 
 #endif
