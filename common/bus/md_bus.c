@@ -10,6 +10,8 @@
 #include <sys/socket.h>
 #include <time.h>
 
+#include <linux/sock_diag.h>
+
 #include "md_bus_internal.h"
 
 #define SPEC_UDP "udp"
@@ -92,6 +94,18 @@ int md_bus_wait_fd(int fd, short events, int64_t deadline_us)
     }
 }
 
+/// Takes a cumulative kernel drop count. The cmsg of a queued datagram
+/// carries the count at its enqueue time, which can be older than one already
+/// read through SO_MEMINFO, so only forward steps count (wrap-aware).
+static void note_drops(md_bus_t *bus, uint32_t total)
+{
+    const uint32_t step = total - bus->sock.kernel_drops;
+    if (step != 0u && step < 0x80000000u) {
+        bus->stats.rx_overflow += step;
+        bus->sock.kernel_drops = total;
+    }
+}
+
 void md_bus_account_drops(md_bus_t *bus, struct msghdr *msg)
 {
     for (struct cmsghdr *c = CMSG_FIRSTHDR(msg); c != NULL; c = CMSG_NXTHDR(msg, c)) {
@@ -99,10 +113,20 @@ void md_bus_account_drops(md_bus_t *bus, struct msghdr *msg)
             c->cmsg_len >= CMSG_LEN(sizeof(uint32_t))) {
             uint32_t total;
             memcpy(&total, CMSG_DATA(c), sizeof total);
-            // Unsigned difference: correct across the kernel counter's wrap.
-            bus->stats.rx_overflow += (uint32_t)(total - bus->sock.kernel_drops);
-            bus->sock.kernel_drops = total;
+            note_drops(bus, total);
         }
+    }
+}
+
+void md_bus_poll_drops(md_bus_t *bus)
+{
+    // Drops after the last queued datagram ride on no cmsg; the socket's
+    // meminfo has the current total.
+    uint32_t info[SK_MEMINFO_VARS];
+    socklen_t len = sizeof info;
+    if (getsockopt(bus->sock.fd, SOL_SOCKET, SO_MEMINFO, info, &len) == 0 &&
+        len > (socklen_t)(SK_MEMINFO_DROPS * sizeof info[0])) {
+        note_drops(bus, info[SK_MEMINFO_DROPS]);
     }
 }
 

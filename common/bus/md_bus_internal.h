@@ -37,6 +37,10 @@ int md_bus_wait_fd(int fd, short events, int64_t deadline_us);
 /// of `msg`) to bus->stats.rx_overflow as a delta since the last one seen.
 void md_bus_account_drops(md_bus_t *bus, struct msghdr *msg);
 
+/// Brings stats.rx_overflow up to the socket's current drop total
+/// (SO_MEMINFO); called when a receive finds the queue empty.
+void md_bus_poll_drops(md_bus_t *bus);
+
 /// Sends `len` bytes on a non-blocking socket, waiting up to MD_BUS_TX_WAIT_US
 /// for room. `to` may be NULL (connected/bound socket). Returns 0 or -errno.
 int md_bus_sock_send(int fd, const void *buf, size_t len, const struct sockaddr *to, socklen_t to_len);

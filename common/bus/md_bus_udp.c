@@ -105,6 +105,7 @@ static int udp_receive(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us)
             ++discarded;
             continue;
         }
+        md_bus_poll_drops(bus);
         const int w = md_bus_wait_fd(bus->sock.fd, POLLIN, deadline_us);
         if (w <= 0) {
             return w;

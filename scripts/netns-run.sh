@@ -1,0 +1,27 @@
+#!/bin/sh
+# Runs CMD... in a private, throwaway network namespace whose only interface
+# is loopback (up, with a multicast route), so a test's packets cannot reach
+# any other machine, and parallel tests cannot hear each other.
+#
+#   scripts/netns-run.sh CMD [ARGS...]
+#
+# Needs unshare(1) from util-linux and ip(8) from iproute2, and the right to
+# create user + network namespaces (root, or unprivileged user namespaces).
+# Exit status: CMD's, or 125 if the namespace could not be set up.
+set -eu
+if [ "$#" -eq 0 ]; then
+    echo "usage: $0 CMD [ARGS...]" >&2
+    exit 2
+fi
+for tool in unshare ip; do
+    if ! command -v "$tool" >/dev/null 2>&1; then
+        echo "netns-run: '$tool' not found (install util-linux / iproute2)" >&2
+        exit 125
+    fi
+done
+# -r maps the caller to root inside, so this also works for a non-root user
+# where user namespaces are allowed; -n gives the new network namespace.
+exec unshare -rn sh -c '
+    ip link set lo up || { echo "netns-run: cannot bring lo up" >&2; exit 125; }
+    ip route add 224.0.0.0/4 dev lo || { echo "netns-run: cannot add multicast route" >&2; exit 125; }
+    exec "$@"' netns-run "$@"

@@ -1,0 +1,349 @@
+/// Integration tests of the UDP multicast bus. Run only through
+/// scripts/netns-run.sh: a private network namespace with nothing but
+/// loopback, so no datagram can leave the machine and parallel runs cannot
+/// hear each other.
+#define _GNU_SOURCE
+#include <arpa/inet.h>
+#include <errno.h>
+#include <net/if.h>
+#include <netinet/in.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "md_bus.h"
+#include "md_bus_wire.h"
+#include "unity.h"
+
+#define ARRIVE_US 2000000   // generous upper bound; returns as soon as the frame is there
+#define ABSENT_US 50000     // loopback delivers in microseconds; 50 ms of silence means "not sent"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+static md_bus_t open_udp(const char *spec)
+{
+    md_bus_t bus;
+    char why[160] = "";
+    TEST_ASSERT_EQUAL_INT_MESSAGE(0, md_bus_open(&bus, spec, why, sizeof why), why);
+    return bus;
+}
+
+static md_frame_t make_frame(uint32_t id, uint8_t len, uint8_t flags, uint8_t seed)
+{
+    md_frame_t f;
+    memset(&f, 0, sizeof f);
+    f.id = id;
+    f.len = len;
+    f.flags = flags;
+    for (uint8_t i = 0; i < len; ++i) {
+        f.data[i] = (uint8_t)(seed ^ (i * 29u));
+    }
+    return f;
+}
+
+static void expect_frame(md_bus_t *bus, const md_frame_t *e)
+{
+    md_frame_t r;
+    TEST_ASSERT_EQUAL_INT(1, md_bus_receive(bus, &r, ARRIVE_US));
+    TEST_ASSERT_EQUAL_UINT32(e->id, r.id);
+    TEST_ASSERT_EQUAL_UINT8(e->len, r.len);
+    TEST_ASSERT_EQUAL_UINT8(e->flags, r.flags);
+    TEST_ASSERT_EQUAL_MEMORY(e->data, r.data, e->len);
+}
+
+static void expect_nothing(md_bus_t *bus)
+{
+    md_frame_t r;
+    TEST_ASSERT_EQUAL_INT(0, md_bus_receive(bus, &r, ABSENT_US));
+}
+
+/// A plain UDP socket that can send anything to the bus's group, with the
+/// same loopback-only settings as the bus.
+static int raw_sender(void)
+{
+    const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+    TEST_ASSERT_TRUE(fd >= 0);
+    const int ttl = 0;
+    TEST_ASSERT_EQUAL_INT(0, setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl));
+    struct in_addr lo;
+    (void)inet_pton(AF_INET, "127.0.0.1", &lo);
+    TEST_ASSERT_EQUAL_INT(0, setsockopt(fd, IPPROTO_IP, IP_MULTICAST_IF, &lo, sizeof lo));
+    return fd;
+}
+
+static void raw_send(int fd, const uint8_t *buf, size_t len)
+{
+    struct sockaddr_in to;
+    memset(&to, 0, sizeof to);
+    to.sin_family = AF_INET;
+    to.sin_port = htons((uint16_t)MD_BUS_UDP_PORT_DEFAULT);
+    (void)inet_pton(AF_INET, MD_BUS_UDP_GROUP, &to.sin_addr);
+    TEST_ASSERT_EQUAL_INT((int)len, (int)sendto(fd, buf, len, 0, (const struct sockaddr *)&to, sizeof to));
+}
+
+static void test_open_reports_the_group_and_keeps_traffic_on_loopback(void)
+{
+    md_bus_t a;
+    char why[160] = "";
+    TEST_ASSERT_EQUAL_INT(0, md_bus_open(&a, "udp", why, sizeof why));
+    TEST_MESSAGE(why);
+    TEST_ASSERT_TRUE(strstr(why, "loopback") != NULL);
+    TEST_ASSERT_EQUAL_INT(MD_BUS_UDP, a.kind);
+    TEST_ASSERT_EQUAL_STRING("udp:239.71.0.1:57731", a.name);
+    const int fd = md_bus_fd(&a);
+    TEST_ASSERT_TRUE(fd >= 0);
+    int v = -1;
+    socklen_t len = sizeof v;
+    TEST_ASSERT_EQUAL_INT(0, getsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &v, &len));
+    TEST_ASSERT_EQUAL_INT(0, v);  // TTL 0: never forwarded past this host
+    len = sizeof v;
+    TEST_ASSERT_EQUAL_INT(0, getsockopt(fd, IPPROTO_IP, IP_MULTICAST_LOOP, &v, &len));
+    TEST_ASSERT_EQUAL_INT(1, v);
+    struct in_addr ifaddr;
+    len = sizeof ifaddr;
+    TEST_ASSERT_EQUAL_INT(0, getsockopt(fd, IPPROTO_IP, IP_MULTICAST_IF, &ifaddr, &len));
+    TEST_ASSERT_EQUAL_HEX32(htonl(INADDR_LOOPBACK), ifaddr.s_addr);
+    md_bus_close(&a);
+    TEST_ASSERT_EQUAL_INT(-1, md_bus_fd(&a));
+}
+
+static void test_three_endpoints_exchange_classic_and_fd_frames_without_echo(void)
+{
+    md_bus_t a = open_udp("udp");
+    md_bus_t b = open_udp("udp");
+    md_bus_t c = open_udp("udp:57731");
+    const md_frame_t classic = make_frame(0x123, 4, 0, 0xDE);
+    const md_frame_t fd = make_frame(0x1ABCDE01u, 64,
+                                     (uint8_t)(MD_FRAME_FLAG_FD | MD_FRAME_FLAG_EXT | MD_FRAME_FLAG_BRS), 0x5A);
+    const md_frame_t empty = make_frame(0x7FF, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &classic));
+    expect_frame(&b, &classic);
+    expect_frame(&c, &classic);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&c, &fd));
+    expect_frame(&a, &fd);
+    expect_frame(&b, &fd);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&b, &empty));
+    expect_frame(&a, &empty);
+    expect_frame(&c, &empty);
+    // Each sender's own datagrams were looped back to it and dropped.
+    expect_nothing(&a);
+    expect_nothing(&b);
+    expect_nothing(&c);
+    TEST_ASSERT_EQUAL_UINT64(1, a.stats.tx_frames);
+    TEST_ASSERT_EQUAL_UINT64(2, a.stats.rx_frames);
+    TEST_ASSERT_EQUAL_UINT64(0, a.stats.rx_malformed + b.stats.rx_malformed + c.stats.rx_malformed);
+    md_bus_close(&a);
+    md_bus_close(&b);
+    md_bus_close(&c);
+}
+
+static void test_many_frames_arrive_complete_and_in_order(void)
+{
+    md_bus_t a = open_udp("udp");
+    md_bus_t b = open_udp("udp");
+    const uint32_t n = 300;  // well inside the socket buffer
+    for (uint32_t i = 0; i < n; ++i) {
+        const md_frame_t f = make_frame(i, (uint8_t)(i % 9u), 0, (uint8_t)i);
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        const md_frame_t f = make_frame(i, (uint8_t)(i % 9u), 0, (uint8_t)i);
+        expect_frame(&b, &f);
+    }
+    expect_nothing(&b);
+    TEST_ASSERT_EQUAL_UINT64(0, b.stats.rx_overflow);
+    md_bus_close(&a);
+    md_bus_close(&b);
+}
+
+static void test_malformed_datagrams_are_counted_and_ignored(void)
+{
+    md_bus_t b = open_udp("udp");
+    const int raw = raw_sender();
+    const md_frame_t good = make_frame(0x321, 8, 0, 0x11);
+    uint8_t dg[MD_BUS_WIRE_MAX + 8u];
+    const int n = md_bus_wire_encode(&good, 0x0BADF00Du, 1u, dg, sizeof dg);
+    TEST_ASSERT_TRUE(n > 0);
+    const size_t size = (size_t)n;
+    uint8_t bad[sizeof dg];
+
+    memcpy(bad, dg, size);
+    bad[0] = 'X';  // bad magic
+    raw_send(raw, bad, size);
+    memcpy(bad, dg, size);
+    bad[size - 1u] ^= 0xFFu;  // bad CRC
+    raw_send(raw, bad, size);
+    raw_send(raw, dg, size - 1u);  // too short for its len
+    memcpy(bad, dg, size);
+    bad[size] = 0;
+    raw_send(raw, bad, size + 1u);  // too long for its len
+    memcpy(bad, dg, size);
+    bad[2] = 9;  // unknown version
+    raw_send(raw, bad, size);
+    raw_send(raw, dg, 0);  // empty datagram
+    const md_frame_t invalid = make_frame(0x100, 8, 0, 0);
+    TEST_ASSERT_TRUE(md_bus_wire_encode(&invalid, 0x0BADF00Du, 2u, bad, sizeof bad) > 0);
+    bad[12] = 0x00;
+    bad[14] = 0x08;  // id 0x800 without EXT, CRC recomputed: only md_frame_valid catches it
+    {
+        const uint16_t crc = md_bus_wire_crc16(bad, size - 2u);
+        bad[size - 2u] = (uint8_t)(crc >> 8);
+        bad[size - 1u] = (uint8_t)crc;
+    }
+    raw_send(raw, bad, size);
+    raw_send(raw, dg, size);  // finally a good one
+
+    expect_frame(&b, &good);
+    TEST_ASSERT_EQUAL_UINT64(7, b.stats.rx_malformed);
+    TEST_ASSERT_EQUAL_UINT64(1, b.stats.rx_frames);
+    expect_nothing(&b);
+    (void)close(raw);
+    md_bus_close(&b);
+}
+
+static void test_ports_are_separate_buses(void)
+{
+    md_bus_t a = open_udp("udp");
+    md_bus_t other = open_udp("udp:57732");
+    TEST_ASSERT_EQUAL_STRING("udp:239.71.0.1:57732", other.name);
+    const md_frame_t f = make_frame(0x55, 1, 0, 1);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
+    expect_nothing(&other);
+    md_bus_close(&a);
+    md_bus_close(&other);
+}
+
+static void test_invalid_frame_and_arguments_are_refused(void)
+{
+    md_bus_t a = open_udp("udp");
+    md_bus_t b = open_udp("udp");
+    const md_frame_t bad = make_frame(0x100, 9, 0, 0);
+    TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_send(&a, &bad));
+    TEST_ASSERT_EQUAL_UINT64(1, a.stats.tx_errors);
+    expect_nothing(&b);
+    md_frame_t r;
+    TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_receive(&b, &r, -5));
+    TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_receive(&b, NULL, 0));
+    md_bus_close(&a);
+    md_bus_close(&b);
+}
+
+static int64_t now_us(void)
+{
+    struct timespec ts;
+    (void)clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
+}
+
+static void test_receive_waits_for_its_timeout_and_no_longer(void)
+{
+    md_bus_t a = open_udp("udp");
+    md_frame_t r;
+    const int64_t t0 = now_us();
+    TEST_ASSERT_EQUAL_INT(0, md_bus_receive(&a, &r, 100000));
+    const int64_t dt = now_us() - t0;
+    TEST_ASSERT_GREATER_OR_EQUAL_INT(100000, (int)dt);
+    TEST_ASSERT_LESS_THAN_INT(400000, (int)dt);
+    const int64_t t1 = now_us();
+    TEST_ASSERT_EQUAL_INT(0, md_bus_receive(&a, &r, 0));
+    TEST_ASSERT_LESS_THAN_INT(50000, (int)(now_us() - t1));
+    md_bus_close(&a);
+}
+
+static void test_kernel_drops_are_counted_as_overflow(void)
+{
+    md_bus_t a = open_udp("udp");
+    md_bus_t b = open_udp("udp");
+    // b does not read while a floods: its socket buffer must overflow.
+    const uint32_t n = 20000;
+    for (uint32_t i = 0; i < n; ++i) {
+        const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
+    }
+    md_frame_t r;
+    for (uint32_t i = 0; i < n && md_bus_receive(&b, &r, ABSENT_US) == 1; ++i) {
+    }
+    char msg[96];
+    (void)snprintf(msg, sizeof msg, "received %llu, overflow %llu", (unsigned long long)b.stats.rx_frames,
+                   (unsigned long long)b.stats.rx_overflow);
+    TEST_MESSAGE(msg);
+    TEST_ASSERT_GREATER_THAN_UINT(0, (unsigned)b.stats.rx_overflow);
+    TEST_ASSERT_EQUAL_UINT64(a.stats.tx_frames, b.stats.rx_frames + b.stats.rx_overflow);  // nothing uncounted
+    md_bus_close(&a);
+    md_bus_close(&b);
+}
+
+/// Child: opens its own endpoint, announces itself, answers each frame with
+/// id + 1 until it sees id 0x7FF. Exit status 0 = all well.
+static int child_echo(void)
+{
+    md_bus_t bus;
+    if (md_bus_open(&bus, "udp", NULL, 0) != 0) {
+        return 10;
+    }
+    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
+    if (md_bus_send(&bus, &hello) != 0) {
+        return 11;
+    }
+    for (unsigned i = 0; i < 100u; ++i) {
+        md_frame_t f;
+        if (md_bus_receive(&bus, &f, ARRIVE_US) != 1) {
+            return 12;
+        }
+        if (f.id == 0x7FFu) {
+            md_bus_close(&bus);
+            return 0;
+        }
+        f.id += 1u;
+        if (md_bus_send(&bus, &f) != 0) {
+            return 13;
+        }
+    }
+    return 14;
+}
+
+static void test_two_processes_talk_over_the_bus(void)
+{
+    md_bus_t a = open_udp("udp");
+    const pid_t pid = fork();
+    TEST_ASSERT_TRUE(pid >= 0);
+    if (pid == 0) {
+        _exit(child_echo());
+    }
+    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
+    expect_frame(&a, &hello);
+    for (uint32_t i = 0; i < 10u; ++i) {
+        const uint8_t flags = (uint8_t)((i % 2u) == 0u ? 0u : MD_FRAME_FLAG_FD);
+        const md_frame_t f = make_frame(0x100u + 2u * i, (uint8_t)((i % 2u) == 0u ? 8u : 48u), flags, (uint8_t)i);
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
+        md_frame_t e = f;
+        e.id += 1u;
+        expect_frame(&a, &e);
+    }
+    const md_frame_t stop = make_frame(0x7FF, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &stop));
+    int status = -1;
+    TEST_ASSERT_EQUAL_INT((int)pid, (int)waitpid(pid, &status, 0));
+    TEST_ASSERT_TRUE(WIFEXITED(status));
+    TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
+    md_bus_close(&a);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_open_reports_the_group_and_keeps_traffic_on_loopback);
+    RUN_TEST(test_three_endpoints_exchange_classic_and_fd_frames_without_echo);
+    RUN_TEST(test_many_frames_arrive_complete_and_in_order);
+    RUN_TEST(test_malformed_datagrams_are_counted_and_ignored);
+    RUN_TEST(test_ports_are_separate_buses);
+    RUN_TEST(test_invalid_frame_and_arguments_are_refused);
+    RUN_TEST(test_receive_waits_for_its_timeout_and_no_longer);
+    RUN_TEST(test_kernel_drops_are_counted_as_overflow);
+    RUN_TEST(test_two_processes_talk_over_the_bus);
+    return UNITY_END();
+}
