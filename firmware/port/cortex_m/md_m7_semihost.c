@@ -1,0 +1,78 @@
+/* ARM semihosting calls for the Cortex-M port. */
+#include "md_m7_semihost.h"
+
+#include <stddef.h>
+
+/* One semihosting request: r0 = operation, r1 = argument (a pointer to a
+ * parameter block or a value); the host answers in r0. */
+static uint32_t sh_call(uint32_t op, const void *arg)
+{
+    register uint32_t r0 __asm__("r0") = op;
+    register const void *r1 __asm__("r1") = arg;
+    __asm__ volatile("bkpt 0xAB" : "+r"(r0) : "r"(r1) : "memory");
+    return r0;
+}
+
+void md_sh_write0(const char *s)
+{
+    if (s != NULL) {
+        (void)sh_call(MD_SH_SYS_WRITE0, s);
+    }
+}
+
+void md_sh_writec(char c)
+{
+    (void)sh_call(MD_SH_SYS_WRITEC, &c);
+}
+
+void md_sh_write_hex(uint32_t v)
+{
+    static const char digits[] = "0123456789abcdef";
+    char buf[11];
+    buf[0] = '0';
+    buf[1] = 'x';
+    for (unsigned i = 0u; i < 8u; ++i) {
+        buf[2u + i] = digits[(v >> (28u - 4u * i)) & 0xFu];
+    }
+    buf[10] = '\0';
+    md_sh_write0(buf);
+}
+
+void md_sh_write_uint(uint32_t v)
+{
+    char buf[11];
+    unsigned n = sizeof buf - 1u;
+    buf[n] = '\0';
+    do {
+        buf[--n] = (char)('0' + (char)(v % 10u));
+        v /= 10u;
+    } while (v != 0u && n > 0u);
+    md_sh_write0(&buf[n]);
+}
+
+uint32_t md_sh_exit_status(int code)
+{
+    if (code >= 0 && code <= 255) {
+        return (uint32_t)code;
+    }
+    return 255u;
+}
+
+void md_sh_exit(int code)
+{
+    const uint32_t status = md_sh_exit_status(code);
+    const uint32_t block[2] = {MD_SH_ADP_STOPPED_APPLICATION_EXIT, status};
+    (void)sh_call(MD_SH_SYS_EXIT_EXTENDED, block);
+
+    /* Only reached if the host does not implement SYS_EXIT_EXTENDED: the
+     * AArch32 SYS_EXIT takes the reason in r1 and cannot carry a status. */
+    const uint32_t reason = (status == 0u) ? MD_SH_ADP_STOPPED_APPLICATION_EXIT : MD_SH_ADP_STOPPED_RUNTIME_ERROR;
+    (void)sh_call(MD_SH_SYS_EXIT, (const void *)reason);
+
+    /* No host answered: park the core. This is the one unbounded loop of the
+     * port, reached only after the program has ended; a real board's watchdog
+     * resets it. */
+    for (;;) {
+        __asm__ volatile("wfi");
+    }
+}
