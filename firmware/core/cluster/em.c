@@ -1,0 +1,361 @@
+/// @file em.c
+/// MAP-EM iteration of thesis §3.3.3 (see em.h).
+#include "cluster/em.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "common/linalg.h"
+
+#define EM_PI0_INIT 0.05   /* initial outlier weight of a seed */
+#define EM_LOG_TINY (-700.0) /* log of a weight that is numerically zero */
+
+/* Per-component factors of Σ_g = λ C_g used by the E-step and eq. 3.15. */
+typedef struct {
+    double chol[EM_G_MAX][EM_D_MAX * EM_D_MAX];
+    double inv[EM_G_MAX][EM_D_MAX * EM_D_MAX];
+    double logdet[EM_G_MAX];
+} em_cache_t;
+
+void em_options_default(em_options_t *opt)
+{
+    if (opt != NULL) {
+        opt->max_iter = MD_EM_MAX_ITER;
+        opt->tol = 1e-10;
+    }
+}
+
+static md_status_t em_fail(em_fit_t *out, md_status_t st, em_reason_t reason)
+{
+    out->status = st;
+    out->reason = reason;
+    return st;
+}
+
+static double em_safe_log(double w)
+{
+    return (w > 0.0) ? fmax(log(w), EM_LOG_TINY) : EM_LOG_TINY;
+}
+
+static md_status_t em_build_cache(const em_params_t *p, em_cache_t *c)
+{
+    const size_t d = p->d;
+    for (size_t g = 0u; g < p->g; ++g) {
+        double sigma[EM_D_MAX * EM_D_MAX];
+        double work[EM_D_MAX * EM_D_MAX];
+        for (size_t k = 0u; k < d * d; ++k) {
+            sigma[k] = p->lambda * p->shape[g][k];
+        }
+        memcpy(c->chol[g], sigma, sizeof sigma);
+        if ((linalg_cholesky(c->chol[g], d) != MD_OK) ||
+            (linalg_spd_inverse(sigma, d, c->inv[g], work, NULL) != MD_OK)) {
+            return MD_E_NUMERIC;
+        }
+        c->logdet[g] = linalg_cholesky_logdet(c->chol[g], d);
+    }
+    return MD_OK;
+}
+
+/* E-step: z_ig (after eq. 3.13) in the log domain; returns log p(Y|Θ) (eq. 3.5). */
+static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
+                       const em_cache_t *c, double *z)
+{
+    const size_t k = p->g + 1u;
+    double loglik = 0.0;
+    for (size_t i = 0u; i < data->n; ++i) {
+        const double *y = &data->y[i * data->d];
+        double *zi = &z[i * k];
+        zi[0] = em_safe_log(p->pi0) + em_outlier_logpdf(outlier, y);
+        double lse = zi[0];
+        for (size_t g = 0u; g < p->g; ++g) {
+            zi[g + 1u] = em_safe_log(p->pi[g]) + em_log_gauss(c->chol[g], c->logdet[g], data->d, y,
+                                                              p->mean[g]);
+            lse = em_logaddexp(lse, zi[g + 1u]);
+        }
+        for (size_t g = 0u; g < k; ++g) {
+            zi[g] = exp(zi[g] - lse);
+        }
+        loglik += lse;
+    }
+    return loglik;
+}
+
+/* Soft counts n_g and weighted sums Σ_i z_ig y_i. */
+static void em_moments(const em_data_t *data, const double *z, size_t g_count, double *n_soft,
+                       double sum[][EM_D_MAX])
+{
+    const size_t k = g_count + 1u;
+    memset(n_soft, 0, k * sizeof(double));
+    for (size_t g = 0u; g < g_count; ++g) {
+        memset(sum[g], 0, sizeof sum[g]);
+    }
+    for (size_t i = 0u; i < data->n; ++i) {
+        n_soft[0] += z[i * k];
+        for (size_t g = 0u; g < g_count; ++g) {
+            const double w = z[i * k + g + 1u];
+            n_soft[g + 1u] += w;
+            for (size_t j = 0u; j < data->d; ++j) {
+                sum[g][j] += w * data->y[i * data->d + j];
+            }
+        }
+    }
+}
+
+/* eq. 3.15: MAP mean with Σ_g^{-1} of the previous iteration (Remark 3.6). */
+static md_status_t em_map_mean(const em_prior_t *prior, const double *sigma_inv, double n_g,
+                               const double *sum, const double *zeta, double *mean)
+{
+    const size_t d = prior->d;
+    double a[EM_D_MAX * EM_D_MAX];
+    double b[EM_D_MAX];
+    for (size_t r = 0u; r < d; ++r) {
+        b[r] = 0.0;
+        for (size_t c = 0u; c < d; ++c) {
+            a[r * d + c] = n_g * sigma_inv[r * d + c];
+            b[r] += sigma_inv[r * d + c] * sum[c];
+        }
+    }
+    for (size_t j = 0u; j < prior->n_targets; ++j) {
+        const double w = zeta[j + 1u];
+        for (size_t r = 0u; r < d; ++r) {
+            for (size_t c = 0u; c < d; ++c) {
+                a[r * d + c] += w * prior->s_inv[j][r * d + c];
+                b[r] += w * prior->s_inv[j][r * d + c] * prior->mean[j][c];
+            }
+        }
+    }
+    if (linalg_cholesky(a, d) != MD_OK) {
+        return MD_E_NUMERIC;
+    }
+    linalg_cholesky_solve(a, d, b);
+    memcpy(mean, b, d * sizeof(double));
+    return MD_OK;
+}
+
+/* W_g = Σ_i z_ig (y_i - μ_g)(y_i - μ_g)^T for one component. */
+static void em_scatter(const em_data_t *data, const double *z, size_t k, size_t col,
+                       const double *mean, double *w)
+{
+    const size_t d = data->d;
+    memset(w, 0, d * d * sizeof(double));
+    for (size_t i = 0u; i < data->n; ++i) {
+        const double zi = z[i * k + col];
+        double r[EM_D_MAX];
+        for (size_t j = 0u; j < d; ++j) {
+            r[j] = data->y[i * d + j] - mean[j];
+        }
+        for (size_t a = 0u; a < d; ++a) {
+            for (size_t b = 0u; b < d; ++b) {
+                w[a * d + b] += zi * r[a] * r[b];
+            }
+        }
+    }
+}
+
+/* |W|^{1/d} with the collinearity rule of EM_SINGULAR_REL; 0 when rejected. */
+static double em_det_root(const double *w, size_t d)
+{
+    double l[EM_D_MAX * EM_D_MAX];
+    memcpy(l, w, d * d * sizeof(double));
+    double tr = 0.0;
+    for (size_t j = 0u; j < d; ++j) {
+        tr += w[j * d + j];
+    }
+    if (!(tr > 0.0) || (linalg_cholesky(l, d) != MD_OK)) {
+        return 0.0;
+    }
+    const double root = exp(linalg_cholesky_logdet(l, d) / (double)d);
+    return (root >= pow(EM_SINGULAR_REL, 1.0 / (double)d) * tr / (double)d) ? root : 0.0;
+}
+
+/* §3.3.3.2 shared-volume covariance from the scatters W_g of the new means. */
+static em_reason_t em_shared_volume(const em_data_t *data, const double *z, const double *n_soft,
+                                    em_params_t *p)
+{
+    const size_t d = data->d;
+    const size_t k = p->g + 1u;
+    double roots = 0.0;
+    double n_gauss = 0.0;
+    for (size_t g = 0u; g < p->g; ++g) {
+        double w[EM_D_MAX * EM_D_MAX];
+        em_scatter(data, z, k, g + 1u, p->mean[g], w);
+        const double root = em_det_root(w, d);
+        if (!(root > 0.0)) {
+            return EM_FAIL_SINGULAR_COV;
+        }
+        for (size_t e = 0u; e < d * d; ++e) {
+            p->shape[g][e] = w[e] / root; /* C_g = W_g / |W_g|^{1/d}, det C_g = 1 */
+        }
+        roots += root;
+        n_gauss += n_soft[g + 1u];
+    }
+    p->lambda = roots / n_gauss;
+    return (isfinite(p->lambda) && (p->lambda > 0.0)) ? EM_OK : EM_FAIL_NUMERIC;
+}
+
+/* M-step of §3.3.3.2; zeta holds ζ at the current means, c the previous Σ. */
+static em_reason_t em_mstep(const em_data_t *data, const em_prior_t *prior, const double *z,
+                            const em_cache_t *c, double zeta[][EM_J_MAX + 1u],
+                            em_params_t *p)
+{
+    double n_soft[EM_G_MAX + 1u];
+    double sum[EM_G_MAX][EM_D_MAX];
+    em_moments(data, z, p->g, n_soft, sum);
+    const double n = (double)data->n;
+    p->pi0 = n_soft[0] / n;
+    for (size_t g = 0u; g < p->g; ++g) {
+        if (n_soft[g + 1u] < EM_MIN_POINTS_PER_CLUSTER(data->d)) {
+            return EM_FAIL_EMPTY_CLUSTER;
+        }
+        p->pi[g] = n_soft[g + 1u] / n;
+        if (em_map_mean(prior, c->inv[g], n_soft[g + 1u], sum[g], zeta[g], p->mean[g]) != MD_OK) {
+            return EM_FAIL_NUMERIC;
+        }
+    }
+    return em_shared_volume(data, z, n_soft, p);
+}
+
+/* Initial Θ from a hard partition: centroids, one pooled shape, π_0 = EM_PI0_INIT. */
+static em_reason_t em_init_params(const em_data_t *data, const uint8_t *labels, size_t g_count,
+                                  em_params_t *p)
+{
+    const size_t d = data->d;
+    double count[EM_G_MAX] = {0.0};
+    double sum[EM_G_MAX][EM_D_MAX];
+    memset(sum, 0, sizeof sum);
+    memset(p, 0, sizeof *p);
+    p->d = d;
+    p->g = g_count;
+    for (size_t i = 0u; i < data->n; ++i) {
+        if (labels[i] >= g_count) {
+            return EM_FAIL_ARG;
+        }
+        count[labels[i]] += 1.0;
+        for (size_t j = 0u; j < d; ++j) {
+            sum[labels[i]][j] += data->y[i * d + j];
+        }
+    }
+    for (size_t g = 0u; g < g_count; ++g) {
+        if (!(count[g] > 0.0)) {
+            return EM_FAIL_SEED;
+        }
+        p->pi[g] = (1.0 - EM_PI0_INIT) * count[g] / (double)data->n;
+        for (size_t j = 0u; j < d; ++j) {
+            p->mean[g][j] = sum[g][j] / count[g];
+        }
+    }
+    p->pi0 = EM_PI0_INIT;
+    double w[EM_D_MAX * EM_D_MAX] = {0.0};
+    for (size_t i = 0u; i < data->n; ++i) {
+        for (size_t a = 0u; a < d; ++a) {
+            for (size_t b = 0u; b < d; ++b) {
+                w[a * d + b] += (data->y[i * d + a] - p->mean[labels[i]][a]) *
+                                (data->y[i * d + b] - p->mean[labels[i]][b]);
+            }
+        }
+    }
+    const double root = em_det_root(w, d);
+    if (!(root > 0.0)) {
+        return EM_FAIL_SINGULAR_COV;
+    }
+    for (size_t g = 0u; g < g_count; ++g) {
+        for (size_t e = 0u; e < d * d; ++e) {
+            p->shape[g][e] = w[e] / root;
+        }
+    }
+    p->lambda = root / (double)data->n;
+    return EM_OK;
+}
+
+static bool em_fit_args_ok(const em_data_t *data, const em_outlier_t *outlier,
+                           const em_prior_t *prior, const uint8_t *seed_labels, size_t g,
+                           const em_options_t *opt, const double *z)
+{
+    return (data != NULL) && (data->y != NULL) && (outlier != NULL) && (prior != NULL) &&
+           (seed_labels != NULL) && (opt != NULL) && (z != NULL) && (data->d >= 1u) &&
+           (data->d <= EM_D_MAX) && (data->n <= EM_N_MAX) && (g >= 1u) && (g <= EM_G_MAX) &&
+           (outlier->d == data->d) && (prior->d == data->d) && (opt->max_iter >= 1u) &&
+           (opt->max_iter <= MD_EM_MAX_ITER) && (opt->tol > 0.0) &&
+           linalg_all_finite(data->y, data->n * data->d);
+}
+
+/* log-posterior of eq. 3.4 (without C) and ζ at the current means. */
+static double em_log_post(const em_prior_t *prior, const em_params_t *p, double loglik,
+                          double zeta[][EM_J_MAX + 1u])
+{
+    double lp = loglik;
+    for (size_t g = 0u; g < p->g; ++g) {
+        lp += em_prior_log_mean(prior, p->mean[g], zeta[g]);
+    }
+    return lp;
+}
+
+/* Converged, or bounded out; fills the outputs that depend on the final z. */
+static md_status_t em_finish(const em_data_t *data, const double *z, bool converged, em_fit_t *out)
+{
+    double sum[EM_G_MAX][EM_D_MAX];
+    em_moments(data, z, out->params.g, out->n_soft, sum);
+    if (!isfinite(out->log_post) || !isfinite(out->log_lik)) {
+        return em_fail(out, MD_E_NUMERIC, EM_FAIL_NUMERIC);
+    }
+    return converged ? em_fail(out, MD_OK, EM_OK) : em_fail(out, MD_E_NOCONVERGE, EM_FAIL_NOCONVERGE);
+}
+
+md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                   const uint8_t *seed_labels, size_t g, const em_options_t *opt, double *z,
+                   em_fit_t *out)
+{
+    if (out == NULL) {
+        return MD_E_ARG;
+    }
+    memset(out, 0, sizeof *out);
+    if (!em_fit_args_ok(data, outlier, prior, seed_labels, g, opt, z)) {
+        return em_fail(out, MD_E_ARG, EM_FAIL_ARG);
+    }
+    if ((double)data->n < (double)g * EM_MIN_POINTS_PER_CLUSTER(data->d)) {
+        return em_fail(out, MD_E_DEGENERATE, EM_FAIL_TOO_FEW_POINTS);
+    }
+    em_reason_t r = em_init_params(data, seed_labels, g, &out->params);
+    em_cache_t cache;
+    double lp_prev = 0.0;
+    bool converged = false;
+    for (uint32_t it = 0u; (r == EM_OK) && (it <= opt->max_iter); ++it) {
+        if (em_build_cache(&out->params, &cache) != MD_OK) {
+            r = EM_FAIL_NUMERIC;
+            break;
+        }
+        out->log_lik = em_estep(data, outlier, &out->params, &cache, z);
+        out->log_post = em_log_post(prior, &out->params, out->log_lik, out->zeta);
+        converged = (it > 0u) && (fabs(out->log_post - lp_prev) <=
+                                  opt->tol * fmax(1.0, fabs(out->log_post)));
+        if (converged || (it == opt->max_iter) || !isfinite(out->log_post)) {
+            break;
+        }
+        lp_prev = out->log_post;
+        r = em_mstep(data, prior, z, &cache, out->zeta, &out->params);
+        out->iterations = it + 1u;
+    }
+    if (r != EM_OK) {
+        const md_status_t st = (r == EM_FAIL_NUMERIC) ? MD_E_NUMERIC
+                               : (r == EM_FAIL_ARG)   ? MD_E_ARG
+                                                      : MD_E_DEGENERATE;
+        return em_fail(out, st, r);
+    }
+    return em_finish(data, z, converged, out);
+}
+
+void em_labels(const double *z, size_t n, size_t g, uint8_t *label)
+{
+    if ((z == NULL) || (label == NULL) || (g > EM_G_MAX)) {
+        return;
+    }
+    for (size_t i = 0u; i < n; ++i) {
+        size_t best = 0u;
+        for (size_t c = 1u; c <= g; ++c) {
+            if (z[i * (g + 1u) + c] > z[i * (g + 1u) + best]) {
+                best = c;
+            }
+        }
+        label[i] = (uint8_t)best;
+    }
+}

@@ -1,0 +1,568 @@
+/// @file em_evidence.c
+/// Laplace evidence with the analytic Hessian of thesis App. B (see em_evidence.h).
+///
+/// Notation: Φ_g = N(y | μ_g, Σ_g), P = Σ_m π_m f_m (eq. B.11), r = y - μ_g.
+/// For any covariance parameter t of cluster g (an element of C_g or λ):
+///   ∂log Φ/∂t   = -½ tr(Σ^{-1}Σ_t) + ½ r^T Σ^{-1}Σ_tΣ^{-1} r           (B.9, B.10)
+///   ∂²log Φ/∂t∂s = ½ tr(Σ^{-1}Σ_sΣ^{-1}Σ_t) - ½ tr(Σ^{-1}Σ_ts)
+///                 - r^T sym(Σ^{-1}Σ_sΣ^{-1}Σ_tΣ^{-1}) r + ½ r^T Σ^{-1}Σ_tsΣ^{-1} r
+/// with Σ_t = λ ∂C/∂c (shape) or C (volume). Dividing eq. B.17 by P turns
+/// every factor π_g Φ_g / P into the responsibility z_ig, so each point
+/// contributes S_i - u_i u_i^T, u_i = ∇ l_i, S_i = ∇∇P / P (eq. B.17, B.18).
+#include "cluster/em_evidence.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "common/linalg.h"
+
+#define EM_LOG_2PI 1.8378770664093454836
+#define EM_LOG_TINY (-700.0)
+
+/* C_g as a function of its free elements (eq. B.3 generalised: c_dd from det C = 1). */
+typedef struct {
+    double c[EM_D_MAX * EM_D_MAX];
+    double dc[EM_NC_MAX + 1u][EM_D_MAX * EM_D_MAX]; /* ∂C/∂c_t */
+    double f_ts[EM_NC_MAX + 1u][EM_NC_MAX + 1u];    /* ∂²c_dd/∂c_t∂c_s, the only entry of ∂²C */
+} em_shape_t;
+
+/* Per point and cluster: r, Σ^{-1} r, ∂log Φ/∂t, log Φ. */
+typedef struct {
+    double r[EM_D_MAX];
+    double sr[EM_D_MAX];
+    double dt[EM_P_MAX];
+    double log_phi;
+} em_point_t;
+
+static size_t em_nc(size_t d)
+{
+    return (d * (d + 1u)) / 2u - 1u;
+}
+
+size_t em_param_count(size_t d, size_t g)
+{
+    return g * (1u + d + em_nc(d)) + 1u;
+}
+
+/* Row and column of free element t (upper triangle, row-major; c_dd is last). */
+static void em_free_rc(size_t d, size_t t, size_t *row, size_t *col)
+{
+    size_t k = 0u;
+    for (size_t i = 0u; i < d; ++i) {
+        for (size_t j = i; j < d; ++j) {
+            if (k == t) {
+                *row = i;
+                *col = j;
+                return;
+            }
+            k++;
+        }
+    }
+}
+
+/* det C = c_dd · m + r: m (leading minor) and r (det with c_dd = 0) with
+ * their gradients and Hessians in the free elements. */
+static void em_shape_poly(size_t d, const double *x, double *mr, double g[2][EM_NC_MAX + 1u],
+                          double h[2][EM_NC_MAX + 1u][EM_NC_MAX + 1u])
+{
+    memset(g, 0, 2u * sizeof g[0]);
+    memset(h, 0, 2u * sizeof h[0]);
+    if (d == 2u) { /* x = (c11, c12): m = c11, r = -c12^2 */
+        mr[0] = x[0];
+        mr[1] = -x[1] * x[1];
+        g[0][0] = 1.0;
+        g[1][1] = -2.0 * x[1];
+        h[1][1][1] = -2.0;
+        return;
+    }
+    /* d = 3, x = (c11, c12, c13, c22, c23) */
+    mr[0] = x[0] * x[3] - x[1] * x[1];
+    mr[1] = -x[0] * x[4] * x[4] + 2.0 * x[1] * x[2] * x[4] - x[3] * x[2] * x[2];
+    g[0][0] = x[3];
+    g[0][1] = -2.0 * x[1];
+    g[0][3] = x[0];
+    h[0][0][3] = h[0][3][0] = 1.0;
+    h[0][1][1] = -2.0;
+    g[1][0] = -x[4] * x[4];
+    g[1][1] = 2.0 * x[2] * x[4];
+    g[1][2] = 2.0 * x[1] * x[4] - 2.0 * x[3] * x[2];
+    g[1][3] = -x[2] * x[2];
+    g[1][4] = -2.0 * x[0] * x[4] + 2.0 * x[1] * x[2];
+    h[1][0][4] = h[1][4][0] = -2.0 * x[4];
+    h[1][1][2] = h[1][2][1] = 2.0 * x[4];
+    h[1][1][4] = h[1][4][1] = 2.0 * x[2];
+    h[1][2][2] = -2.0 * x[3];
+    h[1][2][3] = h[1][3][2] = -2.0 * x[2];
+    h[1][2][4] = h[1][4][2] = 2.0 * x[1];
+    h[1][4][4] = -2.0 * x[0];
+}
+
+/* c_dd = (1 - r)/m and its derivatives by the quotient rule on f m = 1 - r. */
+static md_status_t em_shape_last(size_t d, const double *x, em_shape_t *s, double *ft)
+{
+    const size_t nc = em_nc(d);
+    double mr[2];
+    double g[2][EM_NC_MAX + 1u];
+    double h[2][EM_NC_MAX + 1u][EM_NC_MAX + 1u];
+    em_shape_poly(d, x, mr, g, h);
+    const double f = (1.0 - mr[1]) / mr[0];
+    if (!(mr[0] > 0.0) || !(f > 0.0) || !isfinite(f)) {
+        return MD_E_NUMERIC;
+    }
+    for (size_t t = 0u; t < nc; ++t) {
+        ft[t] = (-g[1][t] - f * g[0][t]) / mr[0];
+    }
+    for (size_t t = 0u; t < nc; ++t) {
+        for (size_t u = 0u; u < nc; ++u) {
+            s->f_ts[t][u] =
+                (-h[1][t][u] - ft[t] * g[0][u] - ft[u] * g[0][t] - f * h[0][t][u]) / mr[0];
+        }
+    }
+    s->c[d * d - 1u] = f;
+    return MD_OK;
+}
+
+static md_status_t em_shape_build(size_t d, const double *x, em_shape_t *s)
+{
+    memset(s, 0, sizeof *s);
+    if (d == 1u) {
+        s->c[0] = 1.0;
+        return MD_OK;
+    }
+    const size_t nc = em_nc(d);
+    double ft[EM_NC_MAX + 1u];
+    if (em_shape_last(d, x, s, ft) != MD_OK) {
+        return MD_E_NUMERIC;
+    }
+    for (size_t t = 0u; t < nc; ++t) {
+        size_t i = 0u;
+        size_t j = 0u;
+        em_free_rc(d, t, &i, &j);
+        s->c[i * d + j] = s->c[j * d + i] = x[t];
+        s->dc[t][i * d + j] = s->dc[t][j * d + i] = 1.0;
+        s->dc[t][d * d - 1u] += ft[t];
+    }
+    double l[EM_D_MAX * EM_D_MAX];
+    memcpy(l, s->c, sizeof l);
+    return (linalg_cholesky(l, d) == MD_OK) ? MD_OK : MD_E_NUMERIC;
+}
+
+md_status_t em_theta_pack(const em_params_t *p, double *theta)
+{
+    if ((p == NULL) || (theta == NULL) || (p->d == 0u) || (p->d > EM_D_MAX) || (p->g == 0u) ||
+        (p->g > EM_G_MAX)) {
+        return MD_E_ARG;
+    }
+    const size_t d = p->d;
+    size_t k = 0u;
+    for (size_t g = 0u; g < p->g; ++g) {
+        theta[k++] = p->pi[g];
+        for (size_t j = 0u; j < d; ++j) {
+            theta[k++] = p->mean[g][j];
+        }
+        for (size_t t = 0u; t < em_nc(d); ++t) {
+            size_t i = 0u;
+            size_t j = 0u;
+            em_free_rc(d, t, &i, &j);
+            theta[k++] = p->shape[g][i * d + j];
+        }
+    }
+    theta[k] = p->lambda;
+    return MD_OK;
+}
+
+md_status_t em_theta_unpack(const double *theta, size_t d, size_t g, em_params_t *p)
+{
+    if ((theta == NULL) || (p == NULL) || (d == 0u) || (d > EM_D_MAX) || (g == 0u) ||
+        (g > EM_G_MAX) || !linalg_all_finite(theta, em_param_count(d, g))) {
+        return MD_E_ARG;
+    }
+    memset(p, 0, sizeof *p);
+    p->d = d;
+    p->g = g;
+    p->pi0 = 1.0;
+    size_t k = 0u;
+    for (size_t c = 0u; c < g; ++c) {
+        p->pi[c] = theta[k++];
+        p->pi0 -= p->pi[c];
+        memcpy(p->mean[c], &theta[k], d * sizeof(double));
+        k += d;
+        em_shape_t s;
+        if (!(p->pi[c] > 0.0) || (em_shape_build(d, &theta[k], &s) != MD_OK)) {
+            return MD_E_NUMERIC;
+        }
+        memcpy(p->shape[c], s.c, sizeof s.c);
+        k += em_nc(d);
+    }
+    p->lambda = theta[k];
+    return ((p->lambda > 0.0) && (p->pi0 >= 0.0)) ? MD_OK : MD_E_NUMERIC;
+}
+
+/* Σ_ts for covariance parameters t, s (index nc = λ). */
+static void em_sigma_ts(const em_shape_t *sh, size_t d, double lambda, size_t t, size_t s,
+                        double *out)
+{
+    const size_t nc = em_nc(d);
+    memset(out, 0, d * d * sizeof(double));
+    if ((t < nc) && (s < nc)) {
+        out[d * d - 1u] = lambda * sh->f_ts[t][s];
+    } else if ((t < nc) || (s < nc)) {
+        memcpy(out, sh->dc[(t < nc) ? t : s], d * d * sizeof(double));
+    }
+}
+
+static double em_trace(const double *a, size_t d)
+{
+    double t = 0.0;
+    for (size_t j = 0u; j < d; ++j) {
+        t += a[j * d + j];
+    }
+    return t;
+}
+
+/* First-order tables: Σ, Σ^{-1}, N_t = Σ^{-1}Σ_tΣ^{-1}, tr(Σ^{-1}Σ_t). */
+static md_status_t em_comp_first(const em_shape_t *sh, size_t d, double lambda,
+                                 double sig_t[][EM_D_MAX * EM_D_MAX], em_comp_deriv_t *cd)
+{
+    const size_t np = em_nc(d) + 1u;
+    double sigma[EM_D_MAX * EM_D_MAX];
+    double work[EM_D_MAX * EM_D_MAX];
+    for (size_t e = 0u; e < d * d; ++e) {
+        sigma[e] = lambda * sh->c[e];
+    }
+    memcpy(cd->chol, sigma, sizeof sigma);
+    if ((linalg_cholesky(cd->chol, d) != MD_OK) ||
+        (linalg_spd_inverse(sigma, d, cd->sigma_inv, work, NULL) != MD_OK)) {
+        return MD_E_NUMERIC;
+    }
+    cd->logdet = linalg_cholesky_logdet(cd->chol, d);
+    for (size_t t = 0u; t < np; ++t) {
+        for (size_t e = 0u; e < d * d; ++e) {
+            sig_t[t][e] = (t + 1u < np) ? lambda * sh->dc[t][e] : sh->c[e];
+        }
+        double m[EM_D_MAX * EM_D_MAX];
+        linalg_matmul(cd->sigma_inv, sig_t[t], m, d, d, d);
+        cd->tr_m[t] = em_trace(m, d);
+        linalg_matmul(m, cd->sigma_inv, cd->n_t[t], d, d, d);
+    }
+    return MD_OK;
+}
+
+/* Second-order tables k_ts, q_ts of ∂²log Φ/∂t∂s = k_ts + r^T q_ts r. */
+static md_status_t em_comp_prepare(const em_params_t *p, size_t g, em_comp_deriv_t *cd)
+{
+    const size_t d = p->d;
+    const size_t np = em_nc(d) + 1u;
+    double x[EM_NC_MAX + 1u];
+    for (size_t t = 0u; t + 1u < np; ++t) {
+        size_t i = 0u;
+        size_t j = 0u;
+        em_free_rc(d, t, &i, &j);
+        x[t] = p->shape[g][i * d + j];
+    }
+    em_shape_t sh;
+    double sig_t[EM_P_MAX][EM_D_MAX * EM_D_MAX];
+    if ((em_shape_build(d, x, &sh) != MD_OK) || (em_comp_first(&sh, d, p->lambda, sig_t, cd) != MD_OK)) {
+        return MD_E_NUMERIC;
+    }
+    for (size_t t = 0u; t < np; ++t) {
+        for (size_t s = 0u; s < np; ++s) {
+            double sts[EM_D_MAX * EM_D_MAX];
+            double a[EM_D_MAX * EM_D_MAX];
+            double b[EM_D_MAX * EM_D_MAX];
+            double m[EM_D_MAX * EM_D_MAX];
+            em_sigma_ts(&sh, d, p->lambda, t, s, sts);
+            linalg_matmul(cd->n_t[s], sig_t[t], m, d, d, d);      /* Σ^{-1}Σ_sΣ^{-1}Σ_t */
+            linalg_matmul(m, cd->sigma_inv, a, d, d, d);          /* ... Σ^{-1} */
+            linalg_matmul(cd->sigma_inv, sts, b, d, d, d);        /* Σ^{-1}Σ_ts */
+            cd->k_ts[t][s] = 0.5 * (em_trace(m, d) - em_trace(b, d));
+            linalg_matmul(b, cd->sigma_inv, m, d, d, d);          /* Σ^{-1}Σ_tsΣ^{-1} */
+            for (size_t r = 0u; r < d; ++r) {
+                for (size_t c = 0u; c < d; ++c) {
+                    cd->q_ts[t][s][r * d + c] =
+                        0.5 * m[r * d + c] - 0.5 * (a[r * d + c] + a[c * d + r]);
+                }
+            }
+        }
+    }
+    return MD_OK;
+}
+
+static double em_quad(const double *a, const double *r, size_t d)
+{
+    double q = 0.0;
+    for (size_t i = 0u; i < d; ++i) {
+        for (size_t j = 0u; j < d; ++j) {
+            q += r[i] * a[i * d + j] * r[j];
+        }
+    }
+    return q;
+}
+
+static void em_point_terms(const em_params_t *p, const em_comp_deriv_t *cd, const double *y,
+                           em_point_t *pt)
+{
+    const size_t d = p->d;
+    for (size_t g = 0u; g < p->g; ++g) {
+        for (size_t j = 0u; j < d; ++j) {
+            pt[g].r[j] = y[j] - p->mean[g][j];
+        }
+        double m2 = 0.0;
+        for (size_t j = 0u; j < d; ++j) {
+            pt[g].sr[j] = 0.0;
+            for (size_t k = 0u; k < d; ++k) {
+                pt[g].sr[j] += cd[g].sigma_inv[j * d + k] * pt[g].r[k];
+            }
+            m2 += pt[g].r[j] * pt[g].sr[j];
+        }
+        pt[g].log_phi = -0.5 * ((double)d * EM_LOG_2PI + cd[g].logdet + m2); /* eq. 3.1 */
+        for (size_t t = 0u; t <= em_nc(d); ++t) {
+            pt[g].dt[t] = -0.5 * cd[g].tr_m[t] + 0.5 * em_quad(cd[g].n_t[t], pt[g].r, d);
+        }
+    }
+}
+
+/* Index of covariance parameter t of cluster g in Θ (t = nc is the shared λ). */
+static size_t em_cov_index(size_t d, size_t g_count, size_t g, size_t t)
+{
+    const size_t nc = em_nc(d);
+    return (t < nc) ? (g * (1u + d + nc) + 1u + d + t) : (em_param_count(d, g_count) - 1u);
+}
+
+static void em_sym_add(double *h, size_t eta, size_t a, size_t b, double v)
+{
+    h[a * eta + b] += v;
+    if (a != b) {
+        h[b * eta + a] += v;
+    }
+}
+
+/* S_i = ∇∇P / P for one cluster (eq. B.18 last term and B.2.2), a = Φ/P, q = πΦ/P. */
+static void em_point_curvature(const em_params_t *p, const em_comp_deriv_t *cd,
+                               const em_point_t *pt, size_t g, double a, double q, double *h)
+{
+    const size_t d = p->d;
+    const size_t np = em_nc(d) + 1u;
+    const size_t eta = em_param_count(d, p->g);
+    const size_t ip = g * (1u + d + np - 1u);
+    for (size_t j = 0u; j < d; ++j) {
+        em_sym_add(h, eta, ip, ip + 1u + j, a * pt->sr[j]);             /* means – weights */
+        for (size_t k = 0u; k < d; ++k) {                                /* means – means */
+            h[(ip + 1u + j) * eta + ip + 1u + k] +=
+                q * (pt->sr[j] * pt->sr[k] - cd->sigma_inv[j * d + k]);
+        }
+        for (size_t t = 0u; t < np; ++t) {                               /* means – (co)variances, volume */
+            double ntr = 0.0;
+            for (size_t k = 0u; k < d; ++k) {
+                ntr += cd->n_t[t][j * d + k] * pt->r[k];
+            }
+            em_sym_add(h, eta, ip + 1u + j, em_cov_index(d, p->g, g, t),
+                       q * (pt->sr[j] * pt->dt[t] - ntr));
+        }
+    }
+    for (size_t t = 0u; t < np; ++t) {
+        const size_t it = em_cov_index(d, p->g, g, t);
+        em_sym_add(h, eta, ip, it, a * pt->dt[t]);                       /* (co)variances, volume – weights */
+        for (size_t s = 0u; s < np; ++s) {                               /* (co)variances, volume pairs */
+            h[it * eta + em_cov_index(d, p->g, g, s)] +=
+                q * (pt->dt[t] * pt->dt[s] + cd->k_ts[t][s] + em_quad(cd->q_ts[t][s], pt->r, d));
+        }
+    }
+}
+
+/* u = ∇ l_i (App. B.2.1 divided by P). Returns l_i = log P. */
+static double em_point_gradient(const em_params_t *p, const em_outlier_t *outlier,
+                                const double *y, const em_point_t *pt, double *u, double *a,
+                                double *q)
+{
+    const size_t d = p->d;
+    const size_t np = em_nc(d) + 1u;
+    const size_t eta = em_param_count(d, p->g);
+    const double lf0 = em_outlier_logpdf(outlier, y);
+    double lp = ((p->pi0 > 0.0) ? fmax(log(p->pi0), EM_LOG_TINY) : EM_LOG_TINY) + lf0;
+    for (size_t g = 0u; g < p->g; ++g) {
+        lp = em_logaddexp(lp, log(p->pi[g]) + pt[g].log_phi);
+    }
+    const double b = exp(lf0 - lp);
+    memset(u, 0, eta * sizeof(double));
+    for (size_t g = 0u; g < p->g; ++g) {
+        const size_t ip = g * (1u + d + np - 1u);
+        a[g] = exp(pt[g].log_phi - lp);
+        q[g] = p->pi[g] * a[g];
+        u[ip] = a[g] - b;
+        for (size_t j = 0u; j < d; ++j) {
+            u[ip + 1u + j] = q[g] * pt[g].sr[j];
+        }
+        for (size_t t = 0u; t < np; ++t) {
+            u[em_cov_index(d, p->g, g, t)] += q[g] * pt[g].dt[t];
+        }
+    }
+    return lp;
+}
+
+/* log p(μ) of eq. 3.8 with gradient and Hessian (App. B.3). */
+static double em_prior_derivs(const em_prior_t *prior, const double *mu, double *grad, double *hess)
+{
+    const size_t d = prior->d;
+    double zeta[EM_J_MAX + 1u];
+    const double lp = em_prior_log_mean(prior, mu, zeta);
+    double e[EM_J_MAX][EM_D_MAX]; /* S_j^{-1} (μ - μ̂_j) */
+    memset(grad, 0, d * sizeof(double));
+    memset(hess, 0, d * d * sizeof(double));
+    for (size_t j = 0u; j < prior->n_targets; ++j) {
+        for (size_t r = 0u; r < d; ++r) {
+            e[j][r] = 0.0;
+            for (size_t c = 0u; c < d; ++c) {
+                e[j][r] += prior->s_inv[j][r * d + c] * (mu[c] - prior->mean[j][c]);
+            }
+            grad[r] -= zeta[j + 1u] * e[j][r];
+        }
+    }
+    for (size_t j = 0u; j < prior->n_targets; ++j) {
+        for (size_t r = 0u; r < d; ++r) {
+            for (size_t c = 0u; c < d; ++c) {
+                hess[r * d + c] += zeta[j + 1u] * (e[j][r] * e[j][c] - prior->s_inv[j][r * d + c]);
+            }
+        }
+    }
+    for (size_t r = 0u; r < d; ++r) {
+        for (size_t c = 0u; c < d; ++c) {
+            hess[r * d + c] -= grad[r] * grad[c];
+        }
+    }
+    return lp;
+}
+
+static double em_add_prior(const em_prior_t *prior, const em_params_t *p, double *grad,
+                           double *hess)
+{
+    const size_t d = p->d;
+    const size_t eta = em_param_count(d, p->g);
+    double lp = 0.0;
+    for (size_t g = 0u; g < p->g; ++g) {
+        double gm[EM_D_MAX];
+        double hm[EM_D_MAX * EM_D_MAX];
+        const size_t im = g * (1u + d + em_nc(d)) + 1u;
+        lp += em_prior_derivs(prior, p->mean[g], gm, hm);
+        for (size_t r = 0u; r < d; ++r) {
+            if (grad != NULL) {
+                grad[im + r] += gm[r];
+            }
+            for (size_t c = 0u; (hess != NULL) && (c < d); ++c) {
+                hess[(im + r) * eta + im + c] += hm[r * d + c];
+            }
+        }
+    }
+    return lp;
+}
+
+static bool em_derivs_args_ok(const em_data_t *data, const em_outlier_t *outlier,
+                              const em_prior_t *prior, const em_params_t *p,
+                              const em_evidence_work_t *ws)
+{
+    return (data != NULL) && (data->y != NULL) && (outlier != NULL) && (prior != NULL) &&
+           (p != NULL) && (ws != NULL) && (p->d == data->d) && (p->d >= 1u) &&
+           (p->d <= EM_D_MAX) && (p->g >= 1u) && (p->g <= EM_G_MAX) && (data->n <= EM_N_MAX) &&
+           (outlier->d == p->d) && (prior->d == p->d) && (p->lambda > 0.0);
+}
+
+md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlier,
+                               const em_prior_t *prior, const em_params_t *p, double *log_post,
+                               double *grad, double *hess, em_evidence_work_t *ws)
+{
+    if (!em_derivs_args_ok(data, outlier, prior, p, ws) || (log_post == NULL)) {
+        return MD_E_ARG;
+    }
+    const size_t eta = em_param_count(p->d, p->g);
+    for (size_t g = 0u; g < p->g; ++g) {
+        if (!(p->pi[g] > 0.0) || (em_comp_prepare(p, g, &ws->comp[g]) != MD_OK)) {
+            return MD_E_NUMERIC;
+        }
+    }
+    if (grad != NULL) {
+        memset(grad, 0, eta * sizeof(double));
+    }
+    if (hess != NULL) {
+        memset(hess, 0, eta * eta * sizeof(double));
+    }
+    double lp = 0.0;
+    for (size_t i = 0u; i < data->n; ++i) {
+        const double *y = &data->y[i * p->d];
+        em_point_t pt[EM_G_MAX];
+        double a[EM_G_MAX];
+        double q[EM_G_MAX];
+        em_point_terms(p, ws->comp, y, pt);
+        lp += em_point_gradient(p, outlier, y, pt, ws->u, a, q);
+        for (size_t k = 0u; (grad != NULL) && (k < eta); ++k) {
+            grad[k] += ws->u[k];
+        }
+        for (size_t g = 0u; (hess != NULL) && (g < p->g); ++g) {
+            em_point_curvature(p, &ws->comp[g], &pt[g], g, a[g], q[g], hess);
+        }
+        for (size_t r = 0u; (hess != NULL) && (r < eta); ++r) {
+            for (size_t c = 0u; c < eta; ++c) {
+                hess[r * eta + c] -= ws->u[r] * ws->u[c]; /* eq. B.17 first term */
+            }
+        }
+    }
+    lp += em_add_prior(prior, p, grad, hess);
+    *log_post = lp;
+    const bool ok = isfinite(lp) && ((grad == NULL) || linalg_all_finite(grad, eta)) &&
+                    ((hess == NULL) || linalg_all_finite(hess, eta * eta));
+    return ok ? MD_OK : MD_E_NUMERIC;
+}
+
+double em_param_prior_log_const(size_t d, size_t g, double shape_prior_width)
+{
+    double log_gfact = 0.0; /* uniform density on the G-simplex of (π_0..π_G) is G! */
+    for (size_t k = 2u; k <= g; ++k) {
+        log_gfact += log((double)k);
+    }
+    return log_gfact - (double)(g * em_nc(d)) * log(shape_prior_width);
+}
+
+md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outlier,
+                                const em_prior_t *prior, const em_params_t *p,
+                                double shape_prior_width, em_evidence_work_t *ws,
+                                double *log_evidence)
+{
+    if ((log_evidence == NULL) || !(shape_prior_width > 0.0) ||
+        !em_derivs_args_ok(data, outlier, prior, p, ws)) {
+        return MD_E_ARG;
+    }
+    double lp = 0.0;
+    const md_status_t st = em_log_post_derivs(data, outlier, prior, p, &lp, NULL, ws->hess, ws);
+    if (st != MD_OK) {
+        return st;
+    }
+    /* H = -∇∇ log posterior (eq. B.1, B.4); scaled by its diagonal so the
+     * Cholesky pivot test sees a unit-diagonal matrix whatever the units of Θ. */
+    const size_t eta = em_param_count(p->d, p->g);
+    double log_diag = 0.0;
+    for (size_t k = 0u; k < eta; ++k) {
+        const double hkk = -ws->hess[k * eta + k];
+        if (!(hkk > 0.0)) {
+            return MD_E_NUMERIC;
+        }
+        ws->u[k] = 1.0 / sqrt(hkk);
+        log_diag += log(hkk);
+    }
+    for (size_t r = 0u; r < eta; ++r) {
+        for (size_t c = 0u; c < eta; ++c) {
+            ws->scaled[r * eta + c] = -ws->hess[r * eta + c] * ws->u[r] * ws->u[c];
+        }
+    }
+    if (linalg_cholesky(ws->scaled, eta) != MD_OK) {
+        return MD_E_NUMERIC;
+    }
+    const double logdet_h = linalg_cholesky_logdet(ws->scaled, eta) + log_diag;
+    *log_evidence = lp + em_param_prior_log_const(p->d, p->g, shape_prior_width) +
+                    0.5 * (double)eta * EM_LOG_2PI - 0.5 * logdet_h; /* eq. 3.18 */
+    return isfinite(*log_evidence) ? MD_OK : MD_E_NUMERIC;
+}
+
+double em_evidence_bic(double log_lik, size_t d, size_t g, size_t n)
+{
+    const double nn = (n > 0u) ? (double)n : 1.0;
+    return log_lik - 0.5 * (double)em_param_count(d, g) * log(nn); /* footnote 11, halved */
+}

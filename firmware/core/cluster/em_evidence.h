@@ -1,0 +1,88 @@
+/// @file em_evidence.h
+/// Model evidence p(Y^k | Y^{1:k-1}, M_m) of one fitted model class (thesis §3.3.5).
+///
+/// Laplace's method (eq. 3.18, App. A.2, eq. A.8):
+///   log J ≈ log p(Y|Θ̂) + log p(Θ̂) + (η/2) log 2π - ½ log det H(Θ̂),
+/// with H the negative Hessian of the log-posterior (eq. B.1), computed
+/// analytically as in App. B: per-point second derivatives of the mixture
+/// log-likelihood (eq. B.12-B.18) plus the block-diagonal mean-prior term
+/// (eq. B.21-B.23). The derivatives are written for any d ≤ 3 through the
+/// derivatives of Σ_g = λ C_g with respect to each parameter, so the d = 2
+/// case is exactly App. B's and d = 1, 3 follow from the same identities
+/// (B.7-B.10).
+///
+/// Parameter vector Θ (eq. B.2), in this order:
+///   for g = 1..G: π_g, μ_g (d values), the free elements of C_g; then λ.
+/// Free elements of C_g: the upper triangle (row-major, i ≤ j) except
+/// c_dd, which the constraint det C_g = 1 fixes (eq. B.3 for d = 2:
+/// c_22 = (c_12^2 + 1)/c_11). η = G (1 + d + d(d+1)/2 - 1) + 1.
+///
+/// Parameter prior (eq. 3.10): the mean prior of em_model.h times the
+/// constant C of the diffuse priors, which the thesis leaves open. Chosen here
+/// so that C is proper and the evidence is comparable across G:
+///   π (π_0..π_G) uniform on the simplex: density G!;
+///   each free element of C_g uniform over a width w_c (default
+///   EM_SHAPE_PRIOR_WIDTH; C_g is dimensionless);
+///   λ: the same diffuse prior in every model class, so it is left out
+///   (it cancels in eq. 3.17 and in the tracker's comparisons on one interval).
+///
+/// BIC (footnote 11) is the cheap alternative: log J ≈ l_M - (η/2) log N.
+#ifndef EM_EVIDENCE_H
+#define EM_EVIDENCE_H
+
+#include "cluster/em_model.h"
+
+#define EM_P_MAX (EM_NC_MAX + 1u)     ///< covariance parameters of one cluster: its C_g elements and λ
+#define EM_SHAPE_PRIOR_WIDTH 10.0     ///< default w_c: C_g elements uniform over a width of 10
+
+/// Per-cluster derivative tables (internal to em_evidence.c; exposed for sizing).
+typedef struct {
+    double chol[EM_D_MAX * EM_D_MAX];
+    double sigma_inv[EM_D_MAX * EM_D_MAX];
+    double logdet;
+    double n_t[EM_P_MAX][EM_D_MAX * EM_D_MAX];            ///< Σ^{-1} Σ_t Σ^{-1}
+    double tr_m[EM_P_MAX];                                ///< tr(Σ^{-1} Σ_t)
+    double k_ts[EM_P_MAX][EM_P_MAX];                      ///< constant part of ∂²log Φ/∂t∂s
+    double q_ts[EM_P_MAX][EM_P_MAX][EM_D_MAX * EM_D_MAX]; ///< quadratic-form part of ∂²log Φ/∂t∂s
+} em_comp_deriv_t;
+
+/// Caller-owned workspace of the Hessian (about 37 KB at d = 3, G = 4).
+typedef struct {
+    em_comp_deriv_t comp[EM_G_MAX];
+    double hess[EM_ETA_MAX * EM_ETA_MAX];
+    double scaled[EM_ETA_MAX * EM_ETA_MAX];
+    double u[EM_ETA_MAX];
+} em_evidence_work_t;
+
+/// η, the number of independent parameters of a model with g clusters in d dimensions.
+size_t em_param_count(size_t d, size_t g);
+
+/// Θ → vector (layout above). theta holds em_param_count(d, g) doubles.
+md_status_t em_theta_pack(const em_params_t *p, double *theta);
+
+/// Vector → Θ; rebuilds c_dd from det C_g = 1 and π_0 = 1 - Σ π_g.
+/// MD_E_NUMERIC if some C_g is not positive definite, λ ≤ 0, π_g ≤ 0 or π_0 < 0.
+md_status_t em_theta_unpack(const double *theta, size_t d, size_t g, em_params_t *p);
+
+/// log-posterior log p(Y|Θ) + Σ_g log p(μ_g) (eq. 3.4 without the constant C),
+/// and optionally its gradient (η values) and Hessian (η × η, row-major) with
+/// respect to Θ. grad or hess may be NULL. O(n (g d^2 P^2 + η^2)).
+md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlier,
+                               const em_prior_t *prior, const em_params_t *p, double *log_post,
+                               double *grad, double *hess, em_evidence_work_t *ws);
+
+/// log C of eq. 3.10 under the priors stated above.
+double em_param_prior_log_const(size_t d, size_t g, double shape_prior_width);
+
+/// Laplace log evidence (eq. 3.18) at the fitted Θ̂. shape_prior_width > 0.
+/// MD_E_NUMERIC if H is not positive definite (Θ̂ is not a local maximum);
+/// the caller reports EM_FAIL_HESSIAN then.
+md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outlier,
+                                const em_prior_t *prior, const em_params_t *p,
+                                double shape_prior_width, em_evidence_work_t *ws,
+                                double *log_evidence);
+
+/// BIC/2 (footnote 11): log_lik - (η/2) log n.
+double em_evidence_bic(double log_lik, size_t d, size_t g, size_t n);
+
+#endif
