@@ -243,5 +243,10 @@ int md_bus_open(md_bus_t *bus, const char *spec, char *why, size_t why_len)
                    spec);
         return -EINVAL;
     }
-    return md_bus_open_socketcan(bus, spec, why, why_len);
+    const int rc = md_bus_open_socketcan(bus, spec, why, why_len);
+    if (rc == -EAFNOSUPPORT) {
+        md_bus_why(why, why_len, "AF_CAN not supported by this kernel (no SocketCAN for '%s'): use bus 'udp' or 'auto'",
+                   spec);
+    }
+    return rc;
 }

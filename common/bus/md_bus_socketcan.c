@@ -209,7 +209,7 @@ int md_bus_open_socketcan(md_bus_t *bus, const char *ifname, char *why, size_t w
     if (fd < 0) {
         const int err = errno;
         if (err == EAFNOSUPPORT) {
-            md_bus_why(why, why_len, "AF_CAN not supported by this kernel (no SocketCAN): use bus 'udp' or 'auto'");
+            md_bus_why(why, why_len, "AF_CAN not supported by this kernel (no SocketCAN)");
         } else {
             md_bus_why(why, why_len, "socket(AF_CAN, SOCK_RAW, CAN_RAW): %s", strerror(err));
         }
