@@ -1,0 +1,174 @@
+/// @file md_params.c
+/// The parameter table and its checks. See md_params.h.
+#include "md_params.h"
+
+#include <math.h>
+
+#define RO_LIVE ((uint8_t)(MD_PARAM_F_READ_ONLY | MD_PARAM_F_LIVE | MD_PARAM_F_INTEGER))
+#define U32_MAX_D 4294967295.0
+
+/* Rows in md_param_id_t order; indices strictly increasing (checked). The
+ * heartbeat defaults follow the DBC's GenMsgCycleTime of 100 ms: a consumer
+ * timeout of 5 periods tolerates a few late frames on a loaded host. The
+ * closed-loop rows are placeholders with the thesis' step sizes (§2.2.4:
+ * Delta_search 20 um, Delta_sample 10 um, Delta_resample 5 um). */
+static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
+    [MD_P_EMCY_INHIBIT_MS] = {0x1015u, "emcy_inhibit_ms", "ms", 0.0, 60000.0, 1000.0, MD_PARAM_F_INTEGER,
+                              "minimum gap between two protocol-error EMCYs (others are never inhibited)"},
+    [MD_P_HEARTBEAT_TIMEOUT_MS] = {0x1016u, "heartbeat_timeout_ms", "ms", 20.0, 60000.0, 500.0, MD_PARAM_F_INTEGER,
+                                   "silence after which a monitored node counts as lost"},
+    [MD_P_HEARTBEAT_PERIOD_MS] = {0x1017u, "heartbeat_period_ms", "ms", 10.0, 10000.0, 100.0, MD_PARAM_F_INTEGER,
+                                  "period of HEARTBEAT_CTRL"},
+    [MD_P_MONITOR_ACT] = {0x1020u, "monitor_act", "", 0.0, 1.0, 1.0, MD_PARAM_F_INTEGER,
+                          "1: supervise the actuator driver's heartbeat"},
+    [MD_P_MONITOR_HALL] = {0x1021u, "monitor_hall", "", 0.0, 1.0, 1.0, MD_PARAM_F_INTEGER,
+                           "1: supervise the position sensor's heartbeat"},
+    [MD_P_MONITOR_FE] = {0x1022u, "monitor_fe", "", 0.0, 1.0, 1.0, MD_PARAM_F_INTEGER,
+                         "1: supervise the front-end's heartbeat"},
+    [MD_P_AUTO_START] = {0x1F80u, "auto_start", "", 0.0, 1.0, 0.0, MD_PARAM_F_INTEGER,
+                         "1: enter operational by itself after boot (never while the e-stop is latched)"},
+    [MD_P_INTERVAL_S] = {0x2000u, "interval_s", "s", 1.0, 120.0, 10.0, MD_PARAM_F_CONFIG,
+                         "length of one recording interval"},
+    [MD_P_STEP_MAX_UM] = {0x2001u, "step_max_um", "um", 1.0, 200.0, 30.0, MD_PARAM_F_MOTION,
+                          "Delta_max: cap of one electrode step"},
+    [MD_P_STEP_SEARCH_UM] = {0x2002u, "step_search_um", "um", 1.0, 200.0, 20.0, MD_PARAM_F_MOTION,
+                             "Delta_search: step while searching for spikes"},
+    [MD_P_STEP_SAMPLE_UM] = {0x2003u, "step_sample_um", "um", 1.0, 200.0, 10.0, MD_PARAM_F_MOTION,
+                             "Delta_sample: step while sampling the SNR curve"},
+    [MD_P_STEP_RESAMPLE_UM] = {0x2004u, "step_resample_um", "um", 1.0, 200.0, 5.0, MD_PARAM_F_MOTION,
+                               "Delta_resample: retracting step while re-estimating the gradient"},
+    [MD_P_DEPTH_MIN_UM] = {0x2010u, "depth_min_um", "um", 0.0, 20000.0, 0.0, MD_PARAM_F_MOTION,
+                           "depth window, shallow end (must stay below depth_max_um)"},
+    [MD_P_DEPTH_MAX_UM] = {0x2011u, "depth_max_um", "um", 0.0, 20000.0, 5000.0, MD_PARAM_F_MOTION,
+                           "depth window, deep end (must stay above depth_min_um)"},
+    [MD_P_NODE_STATE] = {0x3000u, "node_state", "", 0.0, 255.0, 0.0, RO_LIVE, "NMT state (HEARTBEAT NodeState)"},
+    [MD_P_ESTOP_LATCHED] = {0x3001u, "estop_latched", "", 0.0, 1.0, 0.0, RO_LIVE, "1 while the e-stop is latched"},
+    [MD_P_UPTIME_S] = {0x3002u, "uptime_s", "s", 0.0, U32_MAX_D, 0.0, RO_LIVE, "seconds since power-on"},
+    [MD_P_RX_FRAMES] = {0x3010u, "rx_frames", "", 0.0, U32_MAX_D, 0.0, RO_LIVE, "frames received"},
+    [MD_P_RX_MALFORMED] = {0x3011u, "rx_malformed", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
+                           "frames rejected for their form: bad length/FD flag, signal out of range, invalid frame"},
+    [MD_P_RX_UNKNOWN_ID] = {0x3012u, "rx_unknown_id", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
+                            "frames whose id the DBC does not define (29-bit ids included)"},
+    [MD_P_RX_BAD_LENGTH] = {0x3013u, "rx_bad_length", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
+                            "of rx_malformed: length or FD flag not the DBC's"},
+    [MD_P_RX_BAD_RANGE] = {0x3014u, "rx_bad_range", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
+                           "of rx_malformed: a signal out of its range or not finite"},
+    [MD_P_RX_BAD_SEQUENCE] = {0x3015u, "rx_bad_sequence", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
+                              "stream frames out of sequence (REC_DATA, HALL_READING)"},
+    [MD_P_RX_ID_CONFLICT] = {0x3016u, "rx_id_conflict", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
+                             "frames with an id only the controller may send"},
+    [MD_P_TX_FRAMES] = {0x3020u, "tx_frames", "", 0.0, U32_MAX_D, 0.0, RO_LIVE, "frames sent"},
+    [MD_P_TX_FAILURES] = {0x3021u, "tx_failures", "", 0.0, U32_MAX_D, 0.0, RO_LIVE, "sends the platform refused"},
+    [MD_P_EMCY_SENT] = {0x3022u, "emcy_sent", "", 0.0, U32_MAX_D, 0.0, RO_LIVE, "EMCY_CTRL frames sent"},
+    [MD_P_HEARTBEAT_LOST] = {0x3030u, "heartbeat_lost", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
+                             "monitored nodes that went silent"},
+    [MD_P_NODE_BACK] = {0x3031u, "node_back", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
+                        "lost nodes whose heartbeat came back"},
+    [MD_P_ESTOP_EVENTS] = {0x3032u, "estop_events", "", 0.0, U32_MAX_D, 0.0, RO_LIVE, "ESTOP frames received"},
+    [MD_P_NMT_REFUSED] = {0x3033u, "nmt_refused", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
+                          "NMT commands refused (start while the e-stop is latched)"},
+};
+
+_Static_assert(sizeof(PARAM_TABLE) / sizeof(PARAM_TABLE[0]) == (size_t)MD_P_COUNT, "one row per id");
+
+size_t md_params_count(void) { return (size_t)MD_P_COUNT; }
+
+const md_param_def_t *md_params_def(size_t id)
+{
+    return (id < (size_t)MD_P_COUNT) ? &PARAM_TABLE[id] : NULL;
+}
+
+int md_params_find(uint16_t index)
+{
+    for (size_t i = 0u; i < (size_t)MD_P_COUNT; ++i) {
+        if (PARAM_TABLE[i].index == index) {
+            return (int)i;
+        }
+    }
+    return -1;
+}
+
+md_status_t md_params_table_check(void)
+{
+    for (size_t i = 0u; i < (size_t)MD_P_COUNT; ++i) {
+        const md_param_def_t *d = &PARAM_TABLE[i];
+        const bool live_ok = ((d->flags & MD_PARAM_F_LIVE) == 0u) || ((d->flags & MD_PARAM_F_READ_ONLY) != 0u);
+        const bool order_ok = (i == 0u) || (PARAM_TABLE[i - 1u].index < d->index);
+        if (d->name == NULL || d->unit == NULL || d->doc == NULL || !live_ok || !order_ok ||
+            !(d->min <= d->def && d->def <= d->max)) {
+            return MD_E_STATE;
+        }
+    }
+    return MD_OK;
+}
+
+md_status_t md_params_init(md_params_t *p)
+{
+    if (p == NULL) {
+        return MD_E_ARG;
+    }
+    const md_status_t st = md_params_table_check();
+    if (st != MD_OK) {
+        return st;
+    }
+    for (size_t i = 0u; i < (size_t)MD_P_COUNT; ++i) {
+        p->value[i] = PARAM_TABLE[i].def;
+    }
+    return MD_OK;
+}
+
+double md_params_get(const md_params_t *p, md_param_id_t id)
+{
+    if (p == NULL || (size_t)id >= (size_t)MD_P_COUNT) {
+        return 0.0;
+    }
+    return p->value[id];
+}
+
+uint32_t md_params_get_u32(const md_params_t *p, md_param_id_t id)
+{
+    const double v = md_params_get(p, id);
+    if (!(v > 0.0)) {
+        return 0u;
+    }
+    if (v >= U32_MAX_D) {
+        return UINT32_MAX;
+    }
+    return (uint32_t)v;
+}
+
+/* Rules that involve more than one row; `id` is about to take `value`. */
+static bool cross_rules_ok(const md_params_t *p, md_param_id_t id, double value)
+{
+    if (id == MD_P_DEPTH_MIN_UM) {
+        return value < p->value[MD_P_DEPTH_MAX_UM];
+    }
+    if (id == MD_P_DEPTH_MAX_UM) {
+        return value > p->value[MD_P_DEPTH_MIN_UM];
+    }
+    return true;
+}
+
+md_param_status_t md_params_set(md_params_t *p, uint16_t index, double value)
+{
+    const int found = md_params_find(index);
+    if (p == NULL || found < 0) {
+        return MD_PARAM_UNKNOWN_INDEX;
+    }
+    const md_param_id_t id = (md_param_id_t)found;
+    const md_param_def_t *d = &PARAM_TABLE[id];
+    if ((d->flags & MD_PARAM_F_READ_ONLY) != 0u) {
+        return MD_PARAM_READ_ONLY;
+    }
+    if (!isfinite(value) || value < d->min || value > d->max) {
+        return MD_PARAM_OUT_OF_RANGE;
+    }
+    if ((d->flags & MD_PARAM_F_INTEGER) != 0u && fabs(value - floor(value)) > 0.0) {
+        return MD_PARAM_OUT_OF_RANGE;
+    }
+    if (!cross_rules_ok(p, id, value)) {
+        return MD_PARAM_OUT_OF_RANGE;
+    }
+    p->value[id] = value;
+    return MD_PARAM_OK;
+}

@@ -1,0 +1,116 @@
+/// @file md_params.h
+/// The controller's parameter table: every tunable value and every diagnostic
+/// counter an operator can read over the bus (PARAM_REQ_CTRL / PARAM_RESP_CTRL).
+///
+/// The table (md_params_def) is const data, one row per parameter, sorted by
+/// bus index; the values live in a caller-owned md_params_t. Values are doubles
+/// inside the firmware and float32 on the wire. Diagnostic counters are rows
+/// flagged MD_PARAM_F_LIVE: read-only, their value is supplied by the node
+/// (md_node) when a request reads them, so the table stays the one list of
+/// everything readable. docs/protocol.md prints this table (checked by a test).
+///
+/// To add a parameter: add an id before MD_PARAM_COUNT and a row in
+/// md_params.c at the position of that id (a static assertion checks the count,
+/// md_params_table_check() the order and the defaults).
+#ifndef MD_PARAMS_H
+#define MD_PARAMS_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "common/md_status.h"
+#include "md_protocol.h"
+
+/// Row flags.
+#define MD_PARAM_F_READ_ONLY 0x01u  ///< sets are answered MD_PARAM_READ_ONLY
+#define MD_PARAM_F_INTEGER 0x02u    ///< the value must be a whole number
+#define MD_PARAM_F_MOTION 0x04u     ///< a set could move an electrode: refused while the e-stop is latched
+#define MD_PARAM_F_CONFIG 0x08u     ///< changes the cycle's set-up: refused while operational
+#define MD_PARAM_F_LIVE 0x10u       ///< diagnostic, value supplied by the node when read (implies read-only)
+
+/// Dense ids: position of a row in the table. The bus uses md_param_def_t.index.
+typedef enum {
+    /* communication (CANopen-like indices 0x1xxx) */
+    MD_P_EMCY_INHIBIT_MS = 0,        ///< min gap between two protocol-error EMCYs, 0x1015
+    MD_P_HEARTBEAT_TIMEOUT_MS,       ///< consumer timeout, 0x1016
+    MD_P_HEARTBEAT_PERIOD_MS,        ///< producer period, 0x1017
+    MD_P_MONITOR_ACT,                ///< supervise the actuator driver's heartbeat
+    MD_P_MONITOR_HALL,               ///< supervise the position sensor's heartbeat
+    MD_P_MONITOR_FE,                 ///< supervise the front-end's heartbeat
+    MD_P_AUTO_START,                 ///< go operational by itself after boot (CANopen 0x1F80)
+    /* closed loop placeholders (0x2xxx), used by the electrode cycle */
+    MD_P_INTERVAL_S,                 ///< recording interval length
+    MD_P_STEP_MAX_UM,                ///< Delta_max, cap of one step (thesis §2.2.3, after eq. 2.1)
+    MD_P_STEP_SEARCH_UM,             ///< Delta_search
+    MD_P_STEP_SAMPLE_UM,             ///< Delta_sample
+    MD_P_STEP_RESAMPLE_UM,           ///< Delta_resample (retracting)
+    MD_P_DEPTH_MIN_UM,               ///< depth window, shallow end
+    MD_P_DEPTH_MAX_UM,               ///< depth window, deep end
+    /* diagnostics (0x3xxx), read-only */
+    MD_P_NODE_STATE,
+    MD_P_ESTOP_LATCHED,
+    MD_P_UPTIME_S,
+    MD_P_RX_FRAMES,
+    MD_P_RX_MALFORMED,
+    MD_P_RX_UNKNOWN_ID,
+    MD_P_RX_BAD_LENGTH,
+    MD_P_RX_BAD_RANGE,
+    MD_P_RX_BAD_SEQUENCE,
+    MD_P_RX_ID_CONFLICT,
+    MD_P_TX_FRAMES,
+    MD_P_TX_FAILURES,
+    MD_P_EMCY_SENT,
+    MD_P_HEARTBEAT_LOST,
+    MD_P_NODE_BACK,
+    MD_P_ESTOP_EVENTS,
+    MD_P_NMT_REFUSED,
+    MD_P_COUNT
+} md_param_id_t;
+
+/// One row of the table.
+typedef struct {
+    uint16_t index;        ///< bus index (PARAM_REQ_CTRL Index)
+    const char *name;      ///< snake_case, unique
+    const char *unit;      ///< "" when dimensionless
+    double min, max;       ///< inclusive bounds of a set
+    double def;            ///< value after init and after NMT reset-node
+    uint8_t flags;         ///< MD_PARAM_F_*
+    const char *doc;       ///< one line for docs/protocol.md
+} md_param_def_t;
+
+/// Current values of every row (live rows unused: the node owns them).
+typedef struct {
+    double value[MD_P_COUNT];
+} md_params_t;
+
+/// Number of rows. O(1).
+size_t md_params_count(void);
+
+/// Row of dense id `id`, or NULL when id >= md_params_count(). O(1).
+const md_param_def_t *md_params_def(size_t id);
+
+/// Dense id of bus index `index`, or -1 if no row has it. O(n), n = MD_P_COUNT (small).
+int md_params_find(uint16_t index);
+
+/// Checks the const table: indices strictly increasing, names present, min <= def <= max,
+/// live rows read-only. MD_OK or MD_E_STATE. Run by md_params_init; O(n).
+md_status_t md_params_table_check(void);
+
+/// Sets every value to its default. MD_E_ARG if p is NULL, MD_E_STATE if the table is inconsistent.
+md_status_t md_params_init(md_params_t *p);
+
+/// Current value of dense id `id` (not meaningful for counters). 0.0 if out of range.
+double md_params_get(const md_params_t *p, md_param_id_t id);
+
+/// Current value as a whole number, saturated to [0, UINT32_MAX]; for integer rows.
+uint32_t md_params_get_u32(const md_params_t *p, md_param_id_t id);
+
+/// Validates and applies a set of bus index `index` to `value`, in this order:
+/// unknown index, read-only (live rows included), finite (NaN/inf → out of range),
+/// [min, max], integrality, and cross-row rules (depth_min_um < depth_max_um).
+/// The caller checks MD_PARAM_REFUSED (state rules) before calling. Nothing is
+/// changed unless MD_PARAM_OK is returned. O(n).
+md_param_status_t md_params_set(md_params_t *p, uint16_t index, double value);
+
+#endif

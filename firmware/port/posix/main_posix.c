@@ -1,0 +1,246 @@
+/// @file main_posix.c
+/// microdrive-fw: the controller firmware as a Linux process. The platform
+/// part of the libcanard pattern: owns the bus endpoint and the clock, pushes
+/// received frames into md_node, sleeps in the bus receive until the node's
+/// next deadline. No heap (md_no_heap.h; the binary is checked with nm).
+#include <errno.h>
+#include <getopt.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "md_bus.h"
+#include "md_node.h"
+
+/// Longest single wait in the receive call, so that a signal is noticed soon
+/// even though the bus layer restarts its wait after EINTR.
+#define MAX_WAIT_US 50000
+
+/// Frames handled per loop pass at most before the node is polled again, so a
+/// flooded bus cannot starve the heartbeat and the supervision.
+#define RX_BURST 64
+
+typedef struct {
+    md_bus_t bus;
+    uint64_t send_failures;
+} posix_port_ctx_t;
+
+static volatile sig_atomic_t g_stop;
+
+static void on_signal(int sig)
+{
+    (void)sig;
+    g_stop = 1;
+}
+
+static uint64_t mono_us(void)
+{
+    struct timespec ts;
+    (void)clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
+}
+
+static md_status_t port_send(void *ctx, const md_frame_t *frame)
+{
+    posix_port_ctx_t *p = ctx;
+    if (md_bus_send(&p->bus, frame) != 0) {
+        p->send_failures++;
+        return MD_E_IO;
+    }
+    return MD_OK;
+}
+
+static uint64_t port_now_us(void *ctx)
+{
+    (void)ctx;
+    return mono_us();
+}
+
+static void usage(FILE *out)
+{
+    (void)fprintf(out,
+                  "usage: microdrive-fw [--bus SPEC] [--heartbeat-ms N] [--heartbeat-timeout-ms N]\n"
+                  "                     [--auto-start] [--params-markdown] [--help]\n"
+                  "  --bus SPEC               auto (default: vcan0 if present, else udp), udp, udp:PORT,\n"
+                  "                           vcan0/can0/<ifname>, inproc:NAME\n"
+                  "  --heartbeat-ms N         heartbeat period (parameter 0x1017)\n"
+                  "  --heartbeat-timeout-ms N heartbeat consumer timeout (parameter 0x1016)\n"
+                  "  --auto-start             go operational after boot (parameter 0x1F80)\n"
+                  "  --params-markdown        print the parameter table (docs/protocol.md) and exit\n"
+                  "SIGINT/SIGTERM end the process cleanly.\n");
+}
+
+/* Applies one command-line parameter through the same checks as a bus set. */
+static int set_param(md_node_t *node, uint16_t index, const char *text, const char *opt)
+{
+    char *end = NULL;
+    errno = 0;
+    const double v = strtod(text, &end);
+    if (errno != 0 || end == text || *end != '\0') {
+        (void)fprintf(stderr, "microdrive-fw: %s: not a number: '%s'\n", opt, text);
+        return -1;
+    }
+    const md_param_status_t st = md_params_set(&node->params, index, v);
+    if (st != MD_PARAM_OK) {
+        const md_param_def_t *d = md_params_def((size_t)md_params_find(index));
+        (void)fprintf(stderr, "microdrive-fw: %s %s rejected (status %d; range %g..%g, whole number)\n", opt,
+                      text, (int)st, d->min, d->max);
+        return -1;
+    }
+    return 0;
+}
+
+static void print_params_markdown(void)
+{
+    (void)printf("| index | name | unit | min | max | default | access | meaning |\n");
+    (void)printf("|---|---|---|---|---|---|---|---|\n");
+    for (size_t i = 0u; i < md_params_count(); ++i) {
+        const md_param_def_t *d = md_params_def(i);
+        const char *access = ((d->flags & MD_PARAM_F_READ_ONLY) != 0u) ? "ro"
+                             : ((d->flags & MD_PARAM_F_MOTION) != 0u)  ? "rw, refused while e-stop latched"
+                             : ((d->flags & MD_PARAM_F_CONFIG) != 0u)  ? "rw, refused while operational"
+                                                                       : "rw";
+        (void)printf("| 0x%04X | %s | %s | %.10g | %.10g | %.10g | %s%s | %s |\n", (unsigned)d->index, d->name,
+                     d->unit, d->min, d->max, d->def, access,
+                     ((d->flags & MD_PARAM_F_INTEGER) != 0u) ? ", integer" : "", d->doc);
+    }
+}
+
+typedef struct {
+    const char *bus_spec;
+    const char *heartbeat_ms;
+    const char *heartbeat_timeout_ms;
+    int auto_start;
+} options_t;
+
+/* 0: run; 1: exit 0 (help, markdown); -1: usage error. */
+static int parse_options(int argc, char **argv, options_t *o)
+{
+    static const struct option LONG_OPTS[] = {
+        {"bus", required_argument, NULL, 'b'},          {"heartbeat-ms", required_argument, NULL, 'h'},
+        {"heartbeat-timeout-ms", required_argument, NULL, 't'}, {"auto-start", no_argument, NULL, 'a'},
+        {"params-markdown", no_argument, NULL, 'm'},    {"help", no_argument, NULL, 'H'},
+        {NULL, 0, NULL, 0}};
+    for (int guard = 0; guard < argc + 1; ++guard) {
+        const int c = getopt_long(argc, argv, "", LONG_OPTS, NULL);
+        switch (c) {
+        case -1: return (optind == argc) ? 0 : -1;
+        case 'b': o->bus_spec = optarg; break;
+        case 'h': o->heartbeat_ms = optarg; break;
+        case 't': o->heartbeat_timeout_ms = optarg; break;
+        case 'a': o->auto_start = 1; break;
+        case 'm': print_params_markdown(); return 1;
+        case 'H': usage(stdout); return 1;
+        default: return -1;
+        }
+    }
+    return -1;
+}
+
+static int configure(md_node_t *node, const options_t *o)
+{
+    if (o->heartbeat_ms != NULL &&
+        set_param(node, md_params_def(MD_P_HEARTBEAT_PERIOD_MS)->index, o->heartbeat_ms, "--heartbeat-ms") != 0) {
+        return -1;
+    }
+    if (o->heartbeat_timeout_ms != NULL &&
+        set_param(node, md_params_def(MD_P_HEARTBEAT_TIMEOUT_MS)->index, o->heartbeat_timeout_ms,
+                  "--heartbeat-timeout-ms") != 0) {
+        return -1;
+    }
+    if (o->auto_start != 0 && set_param(node, md_params_def(MD_P_AUTO_START)->index, "1", "--auto-start") != 0) {
+        return -1;
+    }
+    return 0;
+}
+
+static void install_signals(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    (void)sigemptyset(&sa.sa_mask);
+    (void)sigaction(SIGINT, &sa, NULL);
+    (void)sigaction(SIGTERM, &sa, NULL);
+}
+
+/* The platform loop: poll, then wait for a frame until the next deadline. */
+static int run(md_node_t *node, posix_port_ctx_t *pc)
+{
+    uint64_t bus_errors = 0u;
+    while (g_stop == 0) {
+        (void)md_node_poll(node, mono_us()); /* failures are counted by the node */
+        for (int burst = 0; burst < RX_BURST && g_stop == 0; ++burst) {
+            const uint64_t now = mono_us();
+            const uint64_t deadline = md_node_next_deadline_us(node, now);
+            if (deadline <= now) {
+                break; /* periodic work is due */
+            }
+            const int64_t wait_us = (deadline - now > MAX_WAIT_US) ? MAX_WAIT_US : (int64_t)(deadline - now);
+            md_frame_t frame;
+            const int r = md_bus_receive(&pc->bus, &frame, wait_us);
+            if (r == 1) {
+                (void)md_node_on_frame(node, &frame, mono_us()); /* rejections are counted by the node */
+                continue;
+            }
+            if (r < 0) {
+                bus_errors++;
+                if (bus_errors <= 10u) {
+                    (void)fprintf(stderr, "microdrive-fw: receive failed: %s\n", strerror(-r));
+                }
+            }
+            break;
+        }
+    }
+    return (int)(bus_errors > 0u);
+}
+
+static void print_summary(const md_node_t *node, const posix_port_ctx_t *pc)
+{
+    const md_node_counters_t *c = &node->counters;
+    (void)fprintf(stderr,
+                  "microdrive-fw: exit: rx %u (malformed %u, unknown id %u, bad length %u, bad range %u, "
+                  "bad sequence %u, id conflict %u), tx %u, send failures %u (port %llu), emcy %u, "
+                  "heartbeat lost %u, e-stops %u%s\n",
+                  (unsigned)c->rx_frames, (unsigned)c->rx_malformed, (unsigned)c->rx_unknown_id,
+                  (unsigned)c->rx_bad_length, (unsigned)c->rx_bad_range, (unsigned)c->rx_bad_sequence,
+                  (unsigned)c->rx_id_conflict, (unsigned)c->tx_frames, (unsigned)c->tx_failures,
+                  (unsigned long long)pc->send_failures, (unsigned)c->emcy_sent, (unsigned)c->heartbeat_lost,
+                  (unsigned)c->estop_events, node->estop_latched ? ", e-stop LATCHED" : "");
+}
+
+int main(int argc, char **argv)
+{
+    static md_node_t node;          /* the controller's whole state: static, no heap */
+    static posix_port_ctx_t port_ctx;
+    options_t opt = {"auto", NULL, NULL, 0};
+    const int parsed = parse_options(argc, argv, &opt);
+    if (parsed != 0) {
+        if (parsed < 0) {
+            usage(stderr);
+        }
+        return parsed < 0 ? 2 : 0;
+    }
+    const md_port_t port = {port_send, port_now_us, &port_ctx};
+    if (md_node_init(&node, &port, mono_us()) != MD_OK || configure(&node, &opt) != 0) {
+        return 2;
+    }
+    char why[160];
+    const int rc = md_bus_open(&port_ctx.bus, opt.bus_spec, why, sizeof why);
+    if (rc != 0) {
+        (void)fprintf(stderr, "microdrive-fw: cannot open bus '%s': %s (%s)\n", opt.bus_spec, strerror(-rc), why);
+        return 3;
+    }
+    (void)fprintf(stderr, "microdrive-fw: bus %s: %s\n", port_ctx.bus.name, why);
+    (void)fprintf(stderr, "microdrive-fw: node %u, protocol %u, %u electrodes, heartbeat %u ms, timeout %u ms\n",
+                  (unsigned)MD_NODE_CTRL, (unsigned)MD_PROTOCOL_VERSION, (unsigned)MD_ELECTRODES,
+                  (unsigned)md_params_get_u32(&node.params, MD_P_HEARTBEAT_PERIOD_MS),
+                  (unsigned)md_params_get_u32(&node.params, MD_P_HEARTBEAT_TIMEOUT_MS));
+    install_signals();
+    const int loop_rc = run(&node, &port_ctx);
+    print_summary(&node, &port_ctx);
+    md_bus_close(&port_ctx.bus);
+    return loop_rc == 0 ? 0 : 1;
+}
