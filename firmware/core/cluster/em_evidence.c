@@ -521,6 +521,58 @@ double em_param_prior_log_const(size_t d, size_t g, double shape_prior_width)
     return log_gfact - (double)(g * em_nc(d)) * log(shape_prior_width);
 }
 
+/* Old index of reduced coordinate a when π_G (index ig) is eliminated. */
+static size_t em_old_index(size_t a, size_t ig)
+{
+    return (a < ig) ? a : a + 1u;
+}
+
+/* H' = J^T H J for θ = J q: π_G = -Σ_{g<G} π_g (+ const), other coordinates kept. */
+static double em_reduced_entry(const double *h, size_t eta, const em_params_t *p, size_t ig,
+                               size_t a, size_t b)
+{
+    const size_t blk = em_param_count(p->d, p->g) / p->g;
+    const size_t oa = em_old_index(a, ig);
+    const size_t ob = em_old_index(b, ig);
+    const bool pa = (oa < ig) && ((oa % blk) == 0u);
+    const bool pb = (ob < ig) && ((ob % blk) == 0u);
+    double v = h[oa * eta + ob];
+    v -= pa ? h[ig * eta + ob] : 0.0;
+    v -= pb ? h[oa * eta + ig] : 0.0;
+    v += (pa && pb) ? h[ig * eta + ig] : 0.0;
+    return v;
+}
+
+/* log det of the SPD matrix -H (or of its reduced form when ig < eta), via
+ * diagonal scaling so the Cholesky pivot test is unit-free. */
+static md_status_t em_neg_logdet(em_evidence_work_t *ws, size_t eta, const em_params_t *p,
+                                 size_t ig, double *logdet)
+{
+    const size_t m = (ig < eta) ? eta - 1u : eta;
+    double log_diag = 0.0;
+    for (size_t k = 0u; k < m; ++k) {
+        const double hkk = -((ig < eta) ? em_reduced_entry(ws->hess, eta, p, ig, k, k)
+                                        : ws->hess[k * eta + k]);
+        if (!(hkk > 0.0)) {
+            return MD_E_NUMERIC;
+        }
+        ws->u[k] = 1.0 / sqrt(hkk);
+        log_diag += log(hkk);
+    }
+    for (size_t r = 0u; r < m; ++r) {
+        for (size_t c = 0u; c < m; ++c) {
+            const double h = (ig < eta) ? em_reduced_entry(ws->hess, eta, p, ig, r, c)
+                                        : ws->hess[r * eta + c];
+            ws->scaled[r * m + c] = -h * ws->u[r] * ws->u[c];
+        }
+    }
+    if (linalg_cholesky(ws->scaled, m) != MD_OK) {
+        return MD_E_NUMERIC;
+    }
+    *logdet = linalg_cholesky_logdet(ws->scaled, m) + log_diag;
+    return MD_OK;
+}
+
 md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outlier,
                                 const em_prior_t *prior, const em_params_t *p,
                                 double shape_prior_width, em_evidence_work_t *ws,
@@ -531,33 +583,24 @@ md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outli
         return MD_E_ARG;
     }
     double lp = 0.0;
-    const md_status_t st = em_log_post_derivs(data, outlier, prior, p, &lp, NULL, ws->hess, ws);
+    const md_status_t st = em_log_post_derivs(data, outlier, prior, p, &lp, ws->grad, ws->hess, ws);
     if (st != MD_OK) {
         return st;
     }
-    /* H = -∇∇ log posterior (eq. B.1, B.4); scaled by its diagonal so the
-     * Cholesky pivot test sees a unit-diagonal matrix whatever the units of Θ. */
+    /* H = -∇∇ log posterior (eq. B.1, B.4); boundary rule of em_evidence.h for π_0 */
     const size_t eta = em_param_count(p->d, p->g);
-    double log_diag = 0.0;
-    for (size_t k = 0u; k < eta; ++k) {
-        const double hkk = -ws->hess[k * eta + k];
-        if (!(hkk > 0.0)) {
-            return MD_E_NUMERIC;
-        }
-        ws->u[k] = 1.0 / sqrt(hkk);
-        log_diag += log(hkk);
-    }
-    for (size_t r = 0u; r < eta; ++r) {
-        for (size_t c = 0u; c < eta; ++c) {
-            ws->scaled[r * eta + c] = -ws->hess[r * eta + c] * ws->u[r] * ws->u[c];
-        }
-    }
-    if (linalg_cholesky(ws->scaled, eta) != MD_OK) {
+    const size_t ig = (p->g - 1u) * (eta / p->g);
+    const double slope = ws->grad[ig];
+    const double curv = -ws->hess[ig * eta + ig];
+    const bool boundary = (curv > 0.0) && (slope > sqrt(curv));
+    double logdet_h = 0.0;
+    if (em_neg_logdet(ws, eta, p, boundary ? ig : eta, &logdet_h) != MD_OK) {
         return MD_E_NUMERIC;
     }
-    const double logdet_h = linalg_cholesky_logdet(ws->scaled, eta) + log_diag;
+    const size_t dims = boundary ? eta - 1u : eta;
     *log_evidence = lp + em_param_prior_log_const(p->d, p->g, shape_prior_width) +
-                    0.5 * (double)eta * EM_LOG_2PI - 0.5 * logdet_h; /* eq. 3.18 */
+                    0.5 * (double)dims * EM_LOG_2PI - 0.5 * logdet_h -
+                    (boundary ? log(slope) : 0.0); /* eq. 3.18 */
     return isfinite(*log_evidence) ? MD_OK : MD_E_NUMERIC;
 }
 

@@ -26,6 +26,15 @@
 ///   λ: the same diffuse prior in every model class, so it is left out
 ///   (it cancels in eq. 3.17 and in the tracker's comparisons on one interval).
 ///
+/// Boundary rule: when the data hold no outliers, EM drives π_0 to the
+/// boundary π_0 = 0 where the log-posterior still rises outward, so the
+/// Gaussian (Laplace) factor of that one direction is wrong and H is often
+/// indefinite. When the outward slope s = ∂ log p/∂π_G (π_0 = 1 - Σπ_g, the
+/// other π_g held) exceeds one posterior standard deviation, sqrt(-∂²/∂π_G²),
+/// π_G is eliminated (π_G = 1 - π_0 - Σ_{g<G} π_g), the Laplace factor is taken
+/// over the remaining η - 1 coordinates, and the π_0 direction contributes the
+/// exact one-sided integral ∫_0^∞ e^{-s u} du = 1/s.
+///
 /// BIC (footnote 11) is the cheap alternative: log J ≈ l_M - (η/2) log N.
 #ifndef EM_EVIDENCE_H
 #define EM_EVIDENCE_H
@@ -52,6 +61,7 @@ typedef struct {
     double hess[EM_ETA_MAX * EM_ETA_MAX];
     double scaled[EM_ETA_MAX * EM_ETA_MAX];
     double u[EM_ETA_MAX];
+    double grad[EM_ETA_MAX];
 } em_evidence_work_t;
 
 /// η, the number of independent parameters of a model with g clusters in d dimensions.
