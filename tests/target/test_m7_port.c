@@ -51,6 +51,15 @@ static void test_send_refuses_invalid_frames(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, port.send(NULL, &f));
 }
 
+static void test_receive_stub_has_nothing(void)
+{
+    md_frame_t f;
+    TEST_ASSERT_FALSE(md_port_m7_receive(&ctx, &f));
+    TEST_ASSERT_FALSE(md_port_m7_receive(&ctx, NULL));
+    TEST_ASSERT_FALSE(md_port_m7_receive(NULL, &f));
+    TEST_ASSERT_EQUAL_UINT32(0u, ctx.frames_received);
+}
+
 static void test_clock_is_monotonic_and_ticks(void)
 {
     md_port_m7_clock_start();
@@ -70,6 +79,7 @@ int main(void)
     RUN_TEST(test_init_rejects_null);
     RUN_TEST(test_send_counts_valid_frames);
     RUN_TEST(test_send_refuses_invalid_frames);
+    RUN_TEST(test_receive_stub_has_nothing);
     RUN_TEST(test_clock_is_monotonic_and_ticks);
     return UNITY_END();
 }

@@ -12,6 +12,7 @@
 #ifndef MD_PORT_M7_H
 #define MD_PORT_M7_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "common/md_status.h"
@@ -27,12 +28,18 @@
 typedef struct {
     uint32_t frames_sent;     ///< frames accepted by send()
     uint32_t frames_refused;  ///< frames send() rejected (invalid id/length/flags, NULL)
+    uint32_t frames_received; ///< frames md_port_m7_receive() handed out
     md_frame_t last_frame;    ///< copy of the last accepted frame
 } md_port_m7_ctx_t;
 
 /// Fill `port` with the Cortex-M7 send/now_us functions bound to `ctx` and
 /// zero `ctx`. MD_E_ARG if either pointer is NULL. O(1).
 md_status_t md_port_m7_init(md_port_t *port, md_port_m7_ctx_t *ctx);
+
+/// Take the next received frame, if any, into `out`. False if none (or `out`
+/// is NULL). QEMU's AN500 has no CAN controller, so this stub never receives;
+/// a real board reads its CAN(-FD) RX FIFO here ("BOARD CAN RX"). O(1).
+bool md_port_m7_receive(md_port_m7_ctx_t *ctx, md_frame_t *out);
 
 /// Start SysTick at MD_M7_TICK_HZ; now_us() counts from this call. Call once.
 void md_port_m7_clock_start(void);
