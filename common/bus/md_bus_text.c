@@ -138,7 +138,9 @@ int md_bus_text_format(const md_frame_t *frame, char *out, size_t out_cap)
     buf[n++] = '#';
     if ((frame->flags & MD_FRAME_FLAG_FD) != 0u) {
         buf[n++] = '#';
-        buf[n++] = (frame->flags & MD_FRAME_FLAG_BRS) != 0u ? '1' : '0';
+        // FDF (4) is always set on an FD frame, as candump prints it on
+        // Linux >= 6.1; BRS is 1.
+        buf[n++] = (frame->flags & MD_FRAME_FLAG_BRS) != 0u ? '5' : '4';
     }
     for (uint8_t i = 0; i < frame->len; ++i) {
         buf[n++] = hex[frame->data[i] >> 4];

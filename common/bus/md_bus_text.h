@@ -3,7 +3,9 @@
 /// like SocketCAN with candump/cansend (and logs load in cantools/python-can):
 ///   classic   123#DEADBEEF        1ABCDEF0#00.11.22   (3 hex digits = 11-bit,
 ///   CAN FD    123##1<hex data>    8 hex digits = 29-bit id; after "##" one hex
-///                                 flag nibble: 1 = BRS)
+///                                 flag nibble: 1 = BRS, 2 = ESI, 4 = FDF)
+/// Parsing takes BRS from the nibble and ignores ESI/FDF; formatting writes
+/// 4 | BRS (4 or 5), exactly what candump -L prints on Linux >= 6.1.
 /// No I/O, no allocation.
 #ifndef MD_BUS_TEXT_H
 #define MD_BUS_TEXT_H
@@ -23,7 +25,7 @@
 int md_bus_text_parse(const char *text, md_frame_t *frame, const char **why);
 
 /// Formats a valid frame as candump -L does (uppercase hex, "ID#DATA" or
-/// "ID##<flags>DATA"). Returns the text length, or -EINVAL for an invalid
+/// "ID##<flags>DATA", flags 4 or 5). Returns the text length, or -EINVAL for an invalid
 /// frame or -ENOSPC if out_cap is too small.
 int md_bus_text_format(const md_frame_t *frame, char *out, size_t out_cap);
 

@@ -55,7 +55,7 @@ static void test_fd_frames_with_flags_and_padding(void)
     md_frame_t f = parse_ok("123##1112233");
     TEST_ASSERT_EQUAL_UINT8(MD_FRAME_FLAG_FD | MD_FRAME_FLAG_BRS, f.flags);
     TEST_ASSERT_EQUAL_UINT8(3, f.len);
-    assert_formats_as("123##1112233", &f);
+    assert_formats_as("123##5112233", &f);  // FDF (4) added, as candump prints it
 
     // 9 bytes is no FD length: padded with zeros to 12, like cansend.
     f = parse_ok("1FFFFFFF##0010203040506070809");
@@ -63,9 +63,9 @@ static void test_fd_frames_with_flags_and_padding(void)
     TEST_ASSERT_EQUAL_UINT8(12, f.len);
     TEST_ASSERT_EQUAL_HEX8(0x09, f.data[8]);
     TEST_ASSERT_EQUAL_HEX8(0x00, f.data[11]);
-    assert_formats_as("1FFFFFFF##0010203040506070809000000", &f);
+    assert_formats_as("1FFFFFFF##4010203040506070809000000", &f);
 
-    char text[8 + 3 + 128 + 1] = "0000ABCD##0";
+    char text[8 + 3 + 128 + 1] = "0000ABCD##4";
     for (size_t i = 0; i < 64u; ++i) {
         text[11 + 2 * i] = "0123456789ABCDEF"[i >> 4];
         text[12 + 2 * i] = "0123456789ABCDEF"[i & 0xFu];
@@ -75,6 +75,14 @@ static void test_fd_frames_with_flags_and_padding(void)
     TEST_ASSERT_EQUAL_UINT8(64, f.len);
     TEST_ASSERT_EQUAL_HEX8(63, f.data[63]);
     assert_formats_as(text, &f);
+}
+
+static void test_fd_flag_nibble_takes_brs_and_ignores_esi_fdf(void)
+{
+    TEST_ASSERT_EQUAL_UINT8(MD_FRAME_FLAG_FD | MD_FRAME_FLAG_BRS, parse_ok("123##501").flags);
+    TEST_ASSERT_EQUAL_UINT8(MD_FRAME_FLAG_FD | MD_FRAME_FLAG_BRS, parse_ok("123##F01").flags);
+    TEST_ASSERT_EQUAL_UINT8(MD_FRAME_FLAG_FD, parse_ok("123##601").flags);
+    TEST_ASSERT_EQUAL_UINT8(MD_FRAME_FLAG_FD, parse_ok("123##001").flags);
 }
 
 static void test_refused_syntax_says_why(void)
@@ -125,6 +133,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_classic_standard_and_extended);
     RUN_TEST(test_fd_frames_with_flags_and_padding);
+    RUN_TEST(test_fd_flag_nibble_takes_brs_and_ignores_esi_fdf);
     RUN_TEST(test_refused_syntax_says_why);
     RUN_TEST(test_format_refuses_invalid_frames_and_small_buffers);
     return UNITY_END();

@@ -47,8 +47,8 @@ cat >"$tmp/expected" <<'EOT'
 123#DEADBEEF
 1ABCDEF0#001122
 7FF#
-321##1000102030405060708090A0B
-456##0112233
+321##5000102030405060708090A0B
+456##4112233
 EOT
 for d in d1 d2; do
     # candump -L line shape: (10 digits.6 digits) LABEL FRAME
