@@ -38,7 +38,7 @@ static uint32_t words_between(const uint32_t *lo, const uint32_t *hi)
 #define STACK_PAINT 0xC0FFEE55u
 /* Words below the live stack pointer left unpainted when painting starts. */
 #define STACK_PAINT_MARGIN_WORDS 16u
-/* External interrupt lines given a vector (the AN500 NVIC has 32 in QEMU). */
+/* External interrupt lines given a vector (QEMU wires the AN500 NVIC with 32, hw/arm/mps2.c). */
 #define MD_M7_EXT_IRQS 32u
 
 void (*md_m7_exit_hook)(void) = NULL;
