@@ -1,0 +1,129 @@
+/// @file pca.c
+/// PCA basis from the waveform sample covariance (see pca.h).
+#include "features/pca.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "common/linalg.h"
+
+_Static_assert(MD_WAVE_LEN_MAX <= LINALG_MAX_N, "the covariance must fit the eigen-solver");
+
+/* Thesis footnote 5: Sigma = 1/(N-1) sum (x_i - xbar)(x_i - xbar)^T. */
+static void pca_covariance(const double *wave, size_t n, size_t stride, size_t d_w, double *mean, double *cov)
+{
+    memset(mean, 0, d_w * sizeof(double));
+    for (size_t i = 0u; i < n; ++i) {
+        for (size_t a = 0u; a < d_w; ++a) {
+            mean[a] += wave[i * stride + a];
+        }
+    }
+    for (size_t a = 0u; a < d_w; ++a) {
+        mean[a] /= (double)n;
+    }
+    memset(cov, 0, d_w * d_w * sizeof(double));
+    for (size_t i = 0u; i < n; ++i) {
+        const double *x = &wave[i * stride];
+        for (size_t a = 0u; a < d_w; ++a) {
+            const double da = x[a] - mean[a];
+            for (size_t b = a; b < d_w; ++b) {
+                cov[a * d_w + b] += da * (x[b] - mean[b]);
+            }
+        }
+    }
+    for (size_t a = 0u; a < d_w; ++a) {
+        for (size_t b = a; b < d_w; ++b) {
+            cov[a * d_w + b] /= (double)(n - 1u);
+            cov[b * d_w + a] = cov[a * d_w + b];
+        }
+    }
+}
+
+/* Flips a basis row so that its largest-magnitude component is positive.
+ * Components within a relative 1e-9 of the largest count as tied and the
+ * lowest index wins, so rounding cannot flip the choice between near-equal
+ * components. */
+static void pca_fix_sign(double *row, size_t d_w)
+{
+    double big = 0.0;
+    for (size_t j = 0u; j < d_w; ++j) {
+        big = fmax(big, fabs(row[j]));
+    }
+    size_t pick = 0u;
+    for (size_t j = 0u; j < d_w; ++j) {
+        if (fabs(row[j]) >= (1.0 - 1e-9) * big) {
+            pick = j;
+            break;
+        }
+    }
+    if (row[pick] < 0.0) {
+        for (size_t j = 0u; j < d_w; ++j) {
+            row[j] = -row[j];
+        }
+    }
+}
+
+md_status_t pca_fit(const double *wave, size_t n, size_t stride, size_t d_w, size_t d, pca_work_t *work,
+                    pca_basis_t *basis)
+{
+    if ((wave == NULL) || (work == NULL) || (basis == NULL) || (d < 1u) || (d > MD_FEAT_DIM_MAX) || (d_w < d) ||
+        (d_w > MD_WAVE_LEN_MAX) || (stride < d_w) || (n > MD_MAX_SPIKES * 64u)) {
+        return MD_E_ARG;
+    }
+    if (n < 2u) {
+        return MD_E_DEGENERATE;
+    }
+    for (size_t i = 0u; i < n; ++i) {
+        if (!linalg_all_finite(&wave[i * stride], d_w)) {
+            return MD_E_NUMERIC;
+        }
+    }
+    pca_covariance(wave, n, stride, d_w, basis->mean, work->cov);
+    double trace = 0.0;
+    for (size_t a = 0u; a < d_w; ++a) {
+        trace += work->cov[a * d_w + a];
+    }
+    if (!(trace > 0.0)) {
+        return MD_E_DEGENERATE;
+    }
+    const md_status_t st = linalg_sym_eigen(work->cov, d_w, work->vals, work->vecs, PCA_JACOBI_SWEEPS);
+    if (st < 0) {
+        return st;
+    }
+    basis->d = d;
+    basis->d_w = d_w;
+    basis->total_var = trace;
+    for (size_t k = 0u; k < d; ++k) {
+        double *row = &basis->b[k * d_w];
+        for (size_t j = 0u; j < d_w; ++j) {
+            row[j] = work->vecs[j * d_w + k]; /* column k of the eigenvector matrix */
+        }
+        pca_fix_sign(row, d_w);
+        basis->eigval[k] = fmax(work->vals[k], 0.0);
+    }
+    return MD_OK;
+}
+
+md_status_t pca_project(const pca_basis_t *basis, const double *x, double *y)
+{
+    if ((basis == NULL) || (x == NULL) || (y == NULL) || (basis->d < 1u) || (basis->d > MD_FEAT_DIM_MAX) ||
+        (basis->d_w > MD_WAVE_LEN_MAX)) {
+        return MD_E_ARG;
+    }
+    linalg_matmul(basis->b, x, y, basis->d, basis->d_w, 1u);
+    return linalg_all_finite(y, basis->d) ? MD_OK : MD_E_NUMERIC;
+}
+
+md_status_t pca_project_all(const pca_basis_t *basis, const double *wave, size_t n, size_t stride, double *y)
+{
+    if ((basis == NULL) || (wave == NULL) || (y == NULL) || (stride < basis->d_w)) {
+        return MD_E_ARG;
+    }
+    for (size_t i = 0u; i < n; ++i) {
+        const md_status_t st = pca_project(basis, &wave[i * stride], &y[i * basis->d]);
+        if (st < 0) {
+            return st;
+        }
+    }
+    return MD_OK;
+}

@@ -1,0 +1,58 @@
+/// @file pca.h
+/// Per-interval PCA feature space (thesis §2.2.2.2).
+///
+/// The basis is the d leading eigenvectors of the sample covariance (thesis
+/// footnote 5, 1/(N-1) normalisation) of the interval's waveforms; features
+/// are y = B x with B the d × d_w matrix whose rows are those eigenvectors
+/// (the thesis' y_i = W^T x_i, W = B^T, without subtracting the mean). The
+/// tracker uses the same B as its measurement matrix H^k (thesis §4.4.2), so
+/// B is part of the output.
+///
+/// Sign convention: each eigenvector is flipped so that its component of
+/// largest magnitude is positive (lowest index among components within 1e-9
+/// relative of the largest). Eigenvectors are only
+/// defined up to sign; the convention makes bases of consecutive intervals
+/// with similar waveforms comparable.
+#ifndef PCA_H
+#define PCA_H
+
+#include <stddef.h>
+
+#include "common/md_status.h"
+#include "md_config.h"
+
+#define PCA_JACOBI_SWEEPS 30u  ///< Jacobi sweep bound (quadratic convergence: ~6-10 suffice at n = 48)
+
+/// A PCA basis of one interval.
+typedef struct {
+    size_t d;                                          ///< feature dimension, 1..MD_FEAT_DIM_MAX
+    size_t d_w;                                        ///< waveform length
+    double b[MD_FEAT_DIM_MAX * MD_WAVE_LEN_MAX];       ///< B, row-major d × d_w in the first d*d_w entries
+    double eigval[MD_FEAT_DIM_MAX];                    ///< variance along each row of B, descending
+    double total_var;                                  ///< trace of the covariance (all d_w eigenvalues)
+    double mean[MD_WAVE_LEN_MAX];                      ///< sample mean waveform (informational)
+} pca_basis_t;
+
+/// Scratch storage of pca_fit (caller-owned, ~37 kB at d_w = 48).
+typedef struct {
+    double cov[MD_WAVE_LEN_MAX * MD_WAVE_LEN_MAX];
+    double vecs[MD_WAVE_LEN_MAX * MD_WAVE_LEN_MAX];
+    double vals[MD_WAVE_LEN_MAX];
+} pca_work_t;
+
+/// Fits the basis to n waveforms: waveform i is wave[i*stride .. i*stride+d_w).
+/// Preconditions: n >= 2, d_w in [d, MD_WAVE_LEN_MAX], stride >= d_w,
+/// 1 <= d <= MD_FEAT_DIM_MAX. MD_E_DEGENERATE if all waveforms are equal
+/// (zero variance), MD_E_NUMERIC on non-finite input, MD_E_NOCONVERGE from
+/// the eigen-solver. O(n d_w^2 + sweeps d_w^3).
+md_status_t pca_fit(const double *wave, size_t n, size_t stride, size_t d_w, size_t d, pca_work_t *work,
+                    pca_basis_t *basis);
+
+/// Features of one waveform: y (d values) = B x (d_w values). O(d d_w).
+md_status_t pca_project(const pca_basis_t *basis, const double *x, double *y);
+
+/// Features of n waveforms (layout as in pca_fit) into y, packed n × d
+/// (the clustering's point layout). O(n d d_w).
+md_status_t pca_project_all(const pca_basis_t *basis, const double *wave, size_t n, size_t stride, double *y);
+
+#endif

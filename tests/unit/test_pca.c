@@ -1,0 +1,172 @@
+/* Unit: pca — the basis of constructed data is known. */
+#include <math.h>
+#include <string.h>
+
+#include "common/md_rng.h"
+#include "features/pca.h"
+#include "unity.h"
+
+#define N_PTS 400u
+#define DW 48u
+
+static double g_wave[N_PTS * MD_WAVE_LEN_MAX];
+static double g_feat[N_PTS * MD_FEAT_DIM_MAX];
+static pca_work_t g_work;
+static pca_basis_t g_basis;
+
+void setUp(void) {}
+void tearDown(void) {}
+
+/* Orthonormal directions u1, u2 in R^DW: a sine and a cosine period (exactly orthogonal). */
+static void directions(double *u1, double *u2)
+{
+    for (size_t j = 0u; j < DW; ++j) {
+        const double ph = 6.283185307179586 * (double)j / (double)DW;
+        u1[j] = sin(ph) * sqrt(2.0 / (double)DW);
+        u2[j] = cos(ph) * sqrt(2.0 / (double)DW);
+    }
+}
+
+/* x_i = m + a_i u1 + b_i u2 with exactly centred, uncorrelated a, b of
+ * variances 9 and 1: the covariance is 9 u1 u1^T + u2 u2^T. */
+static void make_data(double *u1, double *u2, double *m)
+{
+    directions(u1, u2);
+    for (size_t j = 0u; j < DW; ++j) {
+        m[j] = -50.0 * exp(-0.5 * ((double)j - 10.0) * ((double)j - 10.0) / 4.0);
+    }
+    for (size_t i = 0u; i < N_PTS; ++i) {
+        /* a on a 4-point grid, b on a 2-point grid: (+-1, +-3) patterns in all
+         * 8 combinations -> mean 0, var(a) = 5, var(b) = 1, cov(a,b) = 0 */
+        const double a_vals[4] = {-3.0, -1.0, 1.0, 3.0};
+        const double a = a_vals[i % 4u] * sqrt(9.0 / 5.0);
+        const double b = ((i / 4u) % 2u) ? 1.0 : -1.0;
+        for (size_t j = 0u; j < DW; ++j) {
+            g_wave[i * MD_WAVE_LEN_MAX + j] = m[j] + a * u1[j] + b * u2[j];
+        }
+    }
+}
+
+static void test_recovers_eigenvectors_and_variances(void)
+{
+    double u1[DW], u2[DW], m[DW];
+    make_data(u1, u2, m);
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(g_wave, N_PTS, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+    /* sample covariance uses 1/(N-1): variances 9 N/(N-1) and N/(N-1) */
+    const double f = (double)N_PTS / (double)(N_PTS - 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 9.0 * f, g_basis.eigval[0]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1.0 * f, g_basis.eigval[1]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 10.0 * f, g_basis.total_var);
+    double d1 = 0.0, d2 = 0.0;
+    for (size_t j = 0u; j < DW; ++j) {
+        d1 += g_basis.b[j] * u1[j];
+        d2 += g_basis.b[DW + j] * u2[j];
+    }
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1.0, fabs(d1));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1.0, fabs(d2));
+    for (size_t j = 0u; j < DW; ++j) {
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, m[j], g_basis.mean[j]);
+    }
+}
+
+static void test_sign_convention_is_deterministic(void)
+{
+    double u1[DW], u2[DW], m[DW];
+    make_data(u1, u2, m);
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(g_wave, N_PTS, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+    for (size_t k = 0u; k < 2u; ++k) {
+        /* sin and cos have exactly tied extremes (+-1 at several phases): the
+         * first component within 1e-9 of the largest magnitude is positive */
+        double big = 0.0;
+        for (size_t j = 0u; j < DW; ++j) {
+            big = fmax(big, fabs(g_basis.b[k * DW + j]));
+        }
+        size_t first = 0u;
+        while (fabs(g_basis.b[k * DW + first]) < (1.0 - 1e-9) * big) {
+            ++first;
+        }
+        TEST_ASSERT_TRUE(g_basis.b[k * DW + first] > 0.0);
+    }
+    /* negating every waveform leaves the covariance and hence B unchanged */
+    double b0[2u * DW];
+    memcpy(b0, g_basis.b, sizeof b0);
+    for (size_t i = 0u; i < N_PTS; ++i) {
+        for (size_t j = 0u; j < DW; ++j) {
+            g_wave[i * MD_WAVE_LEN_MAX + j] = -g_wave[i * MD_WAVE_LEN_MAX + j];
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(g_wave, N_PTS, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+    for (size_t j = 0u; j < 2u * DW; ++j) {
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, b0[j], g_basis.b[j]);
+    }
+}
+
+static void test_projection_is_b_times_x(void)
+{
+    double u1[DW], u2[DW], m[DW];
+    make_data(u1, u2, m);
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(g_wave, N_PTS, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_project_all(&g_basis, g_wave, N_PTS, MD_WAVE_LEN_MAX, g_feat));
+    const double s1 = (g_basis.b[0] * u1[0] + g_basis.b[1] * u1[1] > 0.0) ? 1.0 : -1.0;
+    double mproj = 0.0;
+    for (size_t j = 0u; j < DW; ++j) {
+        mproj += g_basis.b[j] * m[j];
+    }
+    /* point 1 has a = -1*sqrt(9/5): y_0 = B_0 m + s1 a */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, mproj + s1 * -1.0 * sqrt(9.0 / 5.0), g_feat[1u * 2u]);
+}
+
+static void test_degenerate_and_bad_input(void)
+{
+    for (size_t i = 0u; i < 10u; ++i) {
+        for (size_t j = 0u; j < DW; ++j) {
+            g_wave[i * MD_WAVE_LEN_MAX + j] = (double)j; /* identical waveforms */
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+    TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, pca_fit(g_wave, 1u, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, 0u, &g_work, &g_basis));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG,
+                          pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, MD_FEAT_DIM_MAX + 1u, &g_work, &g_basis));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, pca_fit(g_wave, 10u, 10u, 23u, 2u, &g_work, &g_basis));
+    g_wave[3] = NAN;
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+}
+
+static void test_noisy_spikes_d3(void)
+{
+    /* random data with a dominant direction: d = 3 rows are orthonormal */
+    md_rng_t rng;
+    md_rng_seed(&rng, 5u);
+    double u1[DW], u2[DW];
+    directions(u1, u2);
+    for (size_t i = 0u; i < 200u; ++i) {
+        const double a = 5.0 * md_rng_gauss(&rng);
+        for (size_t j = 0u; j < 23u; ++j) {
+            g_wave[i * MD_WAVE_LEN_MAX + j] = a * u1[j] + md_rng_gauss(&rng);
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(g_wave, 200u, MD_WAVE_LEN_MAX, 23u, 3u, &g_work, &g_basis));
+    for (size_t p = 0u; p < 3u; ++p) {
+        for (size_t q = 0u; q < 3u; ++q) {
+            double dot = 0.0;
+            for (size_t j = 0u; j < 23u; ++j) {
+                dot += g_basis.b[p * 23u + j] * g_basis.b[q * 23u + j];
+            }
+            TEST_ASSERT_DOUBLE_WITHIN(1e-12, (p == q) ? 1.0 : 0.0, dot);
+        }
+    }
+    TEST_ASSERT_TRUE(g_basis.eigval[0] > 5.0 * g_basis.eigval[1]);
+    TEST_ASSERT_TRUE(g_basis.eigval[1] >= g_basis.eigval[2]);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_recovers_eigenvectors_and_variances);
+    RUN_TEST(test_sign_convention_is_deterministic);
+    RUN_TEST(test_projection_is_b_times_x);
+    RUN_TEST(test_degenerate_and_bad_input);
+    RUN_TEST(test_noisy_spikes_d3);
+    return UNITY_END();
+}
