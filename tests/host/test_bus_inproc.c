@@ -18,7 +18,7 @@ static md_frame_t make_frame(uint32_t id, uint8_t len, uint8_t flags, uint8_t se
     f.id = id;
     f.len = len;
     f.flags = flags;
-    for (uint8_t i = 0; i < len; ++i) {
+    for (uint8_t i = 0; i < len && i < MD_FRAME_MAX_DATA; ++i) {  // len may be deliberately invalid
         f.data[i] = (uint8_t)(seed + 7u * i);
     }
     return f;

@@ -27,7 +27,7 @@ start_dump() {
     pids="$pids $!"
     eval "${name}_pid=$!"
     i=0
-    until grep -q "listening on" "$tmp/$name.err"; do
+    until grep -qs "listening on" "$tmp/$name.err"; do
         i=$((i + 1))
         [ "$i" -le 500 ] || fail "$name did not start"
         sleep 0.02
