@@ -1,0 +1,89 @@
+/* Unit: em_model — outlier density (Remark 3.2), mean prior and ζ (eq. 3.8,
+ * 3.9, 3.14) against direct formulas; bounding volume; sort. */
+#include <math.h>
+#include <string.h>
+
+#include "cluster/em_model.h"
+#include "unity.h"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+static const double PI = 3.14159265358979323846;
+
+static void test_outlier_density(void)
+{
+    const double xi[4] = {0.5, 0.1, 0.1, 0.25};
+    em_outlier_t o;
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_outlier_init(2u, xi, 80.0, &o));
+    const double y[2] = {1.0, -0.5};
+    /* K Ξ = [[2, .4], [.4, 1]], det = 1.84, inverse = [[1, -.4], [-.4, 2]] / 1.84 */
+    const double m2 = (1.0 * 1.0 + 2.0 * 0.4 * 0.5 + 2.0 * 0.25) / 1.84;
+    const double gauss = exp(-0.5 * m2) / (2.0 * PI * sqrt(1.84));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, log(0.5 * (gauss + 1.0 / 80.0)), em_outlier_logpdf(&o, y));
+    const double bad[4] = {0.5, 0.6, 0.6, 0.5};
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, em_outlier_init(2u, bad, 80.0, &o));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_outlier_init(2u, xi, 0.0, &o));
+}
+
+static void test_mean_prior_and_zeta(void)
+{
+    em_prior_t p;
+    double zeta[EM_J_MAX + 1u];
+    const double mu[2] = {1.0, 2.0};
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_prior_init(2u, NULL, 0u, 0.025, 50.0, &p));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, -log(50.0), em_prior_log_mean(&p, mu, zeta)); /* uniform */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-15, 1.0, zeta[0]);
+    em_target_t t[2];
+    memset(t, 0, sizeof t);
+    t[0].mean[0] = 1.5;
+    t[0].mean[1] = 2.0;
+    t[0].s_cov[0] = 0.25;
+    t[0].s_cov[3] = 1.0;
+    t[0].p_detect = 0.9;
+    t[1].mean[0] = -3.0;
+    t[1].s_cov[0] = t[1].s_cov[3] = 2.0;
+    t[1].p_detect = 0.75;
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_prior_init(2u, t, 2u, 0.025, 50.0, &p));
+    const double c = 0.025 + 0.9 + 0.75; /* eq. 3.9 */
+    const double f1 = exp(-0.5 * (0.25 / 0.25)) / (2.0 * PI * 0.5);
+    const double f2 = exp(-0.5 * (16.0 + 4.0) / 2.0) / (2.0 * PI * 2.0);
+    const double total = 0.025 / c / 50.0 + 0.9 / c * f1 + 0.75 / c * f2; /* eq. 3.8 */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, log(total), em_prior_log_mean(&p, mu, zeta));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 0.9 / c * f1 / total, zeta[1]); /* eq. 3.14 */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1.0, zeta[0] + zeta[1] + zeta[2]);
+    t[1].p_detect = 1.5;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_prior_init(2u, t, 2u, 0.025, 50.0, &p));
+}
+
+static void test_volume_and_sort(void)
+{
+    const double y[6] = {0.0, 1.0, 2.0, -1.0, 1.0, 3.0};
+    const em_data_t d = {y, 3u, 2u};
+    double v = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_bounding_volume(&d, &v));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-15, 8.0, v);
+    const double flat[4] = {0.0, 1.0, 2.0, 1.0};
+    const em_data_t df = {flat, 2u, 2u};
+    TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, em_bounding_volume(&df, &v));
+    double key[7] = {3.0, -1.0, 2.0, 2.0, 9.0, 0.0, -5.0};
+    uint16_t idx[7] = {0u, 1u, 2u, 3u, 4u, 5u, 6u};
+    em_sort_keys(key, idx, 7u);
+    for (size_t i = 1u; i < 7u; ++i) {
+        TEST_ASSERT_TRUE(key[i - 1u] <= key[i]);
+    }
+    TEST_ASSERT_EQUAL_UINT(6u, idx[0]);
+    TEST_ASSERT_EQUAL_UINT(4u, idx[6]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, log(3.0), em_logaddexp(log(1.0), log(2.0)));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1000.0, em_logaddexp(1000.0, -1000.0));
+    TEST_ASSERT_EQUAL_STRING("EM_FAIL_HESSIAN", em_reason_name(EM_FAIL_HESSIAN));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_outlier_density);
+    RUN_TEST(test_mean_prior_and_zeta);
+    RUN_TEST(test_volume_and_sort);
+    return UNITY_END();
+}
