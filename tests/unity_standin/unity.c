@@ -84,7 +84,7 @@ static void report_location(int line)
     unity_standin_putchar(':');
 }
 
-static void fail_now(int line, const char *what, const char *msg)
+_Noreturn static void fail_now(int line, const char *what, const char *msg)
 {
     report_location(line);
     out_str("FAIL: ");
@@ -140,12 +140,12 @@ void UnityDefaultTestRun(UnityTestFunction func, const char *name, int line)
     }
 }
 
-void UnityFail(const char *msg, int line)
+_Noreturn void UnityFail(const char *msg, int line)
 {
     fail_now(line, "TEST_FAIL", msg);
 }
 
-void UnityIgnore(const char *msg, int line)
+_Noreturn void UnityIgnore(const char *msg, int line)
 {
     report_location(line);
     out_str("IGNORE");
@@ -167,11 +167,9 @@ void UnityMessage(const char *msg, int line)
     unity_standin_putchar('\n');
 }
 
-void UnityAssertTrue(int cond, const char *expr, const char *msg, int line)
+_Noreturn void UnityFailAssert(const char *expr, const char *msg, int line)
 {
-    if (!cond) {
-        fail_now(line, expr, msg);
-    }
+    fail_now(line, expr, msg);
 }
 
 void UnityAssertEqualInt(int64_t expected, int64_t actual, const char *msg, int line)

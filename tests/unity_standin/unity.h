@@ -23,10 +23,13 @@ void tearDown(void);
 void UnityBegin(const char *file);
 int UnityEnd(void);
 void UnityDefaultTestRun(UnityTestFunction func, const char *name, int line);
-void UnityFail(const char *msg, int line);
-void UnityIgnore(const char *msg, int line);
+/* Failing never returns (it longjmps to the test runner), as in real Unity;
+ * saying so lets the compiler see that code after an assertion is reached
+ * only when the assertion held (no false -Wnull-dereference). */
+_Noreturn void UnityFail(const char *msg, int line);
+_Noreturn void UnityFailAssert(const char *expr, const char *msg, int line);
+_Noreturn void UnityIgnore(const char *msg, int line);
 void UnityMessage(const char *msg, int line);
-void UnityAssertTrue(int cond, const char *expr, const char *msg, int line);
 void UnityAssertEqualInt(int64_t expected, int64_t actual, const char *msg, int line);
 void UnityAssertEqualUInt(uint64_t expected, uint64_t actual, const char *msg, int line);
 void UnityAssertCompareInt(int64_t threshold, int64_t actual, int relation, const char *msg, int line);
@@ -54,14 +57,20 @@ void unity_standin_putchar(int c);
 #define TEST_MESSAGE(msg) UnityMessage((msg), __LINE__)
 #define TEST_PASS() ((void)0)
 
-#define TEST_ASSERT_MESSAGE(c, msg) UnityAssertTrue(!!(c), #c, (msg), __LINE__)
-#define TEST_ASSERT(c) UnityAssertTrue(!!(c), #c, NULL, __LINE__)
+#define UNITY_STANDIN_CHECK(c, expr, msg) \
+    do { \
+        if (!(c)) { \
+            UnityFailAssert((expr), (msg), __LINE__); \
+        } \
+    } while (0)
+#define TEST_ASSERT_MESSAGE(c, msg) UNITY_STANDIN_CHECK(c, #c, msg)
+#define TEST_ASSERT(c) UNITY_STANDIN_CHECK(c, #c, NULL)
 #define TEST_ASSERT_TRUE(c) TEST_ASSERT(c)
 #define TEST_ASSERT_TRUE_MESSAGE(c, msg) TEST_ASSERT_MESSAGE(c, msg)
-#define TEST_ASSERT_FALSE(c) UnityAssertTrue(!(c), "!(" #c ")", NULL, __LINE__)
-#define TEST_ASSERT_FALSE_MESSAGE(c, msg) UnityAssertTrue(!(c), "!(" #c ")", (msg), __LINE__)
-#define TEST_ASSERT_NULL(p) UnityAssertTrue((p) == NULL, #p " == NULL", NULL, __LINE__)
-#define TEST_ASSERT_NOT_NULL(p) UnityAssertTrue((p) != NULL, #p " != NULL", NULL, __LINE__)
+#define TEST_ASSERT_FALSE(c) UNITY_STANDIN_CHECK(!(c), "!(" #c ")", NULL)
+#define TEST_ASSERT_FALSE_MESSAGE(c, msg) UNITY_STANDIN_CHECK(!(c), "!(" #c ")", msg)
+#define TEST_ASSERT_NULL(p) UNITY_STANDIN_CHECK((p) == NULL, #p " == NULL", NULL)
+#define TEST_ASSERT_NOT_NULL(p) UNITY_STANDIN_CHECK((p) != NULL, #p " != NULL", NULL)
 
 #define TEST_ASSERT_EQUAL_INT_MESSAGE(e, a, msg) UnityAssertEqualInt((int64_t)(e), (int64_t)(a), (msg), __LINE__)
 #define TEST_ASSERT_EQUAL_INT(e, a) TEST_ASSERT_EQUAL_INT_MESSAGE(e, a, NULL)
