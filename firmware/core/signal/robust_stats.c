@@ -27,7 +27,7 @@ static size_t rs_find_bin(const uint32_t *bins, size_t n_bins, uint64_t k, uint6
 
 uint32_t rs_abs_kth_i16(const int16_t *x, size_t n, int32_t offset, size_t k, rs_hist_t *work)
 {
-    if ((x == NULL) || (work == NULL) || (k >= n) || ((uint64_t)n > 0xFFFFFFFFull) || (offset < -32768) ||
+    if ((x == NULL) || (work == NULL) || (k >= n) || (n > RS_MAX_N) || (offset < -32768) ||
         (offset > 32767)) {
         return 0u;
     }

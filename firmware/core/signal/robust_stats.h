@@ -14,6 +14,7 @@
 #include <stdint.h>
 
 #define RS_LEVEL_BINS 256u  ///< bins per histogram level; 256 * 256 covers |int16 - int16|
+#define RS_MAX_N (1u << 28)  ///< most values per call (32-bit bin counts cannot overflow)
 
 /// Caller-owned histogram storage for rs_abs_kth_i16 / rs_abs_median_i16.
 typedef struct {
@@ -21,7 +22,7 @@ typedef struct {
 } rs_hist_t;
 
 /// Exact k-th smallest (0-based) value of |x[i] - offset| over i < n.
-/// Preconditions: x != NULL, k < n, n < 2^32, -32768 <= offset <= 32767.
+/// Preconditions: x != NULL, k < n <= RS_MAX_N, -32768 <= offset <= 32767.
 /// Returns 0 on a precondition violation. Two passes over x: O(n).
 uint32_t rs_abs_kth_i16(const int16_t *x, size_t n, int32_t offset, size_t k, rs_hist_t *work);
 
