@@ -22,13 +22,11 @@
 void setUp(void) {}
 void tearDown(void) {}
 
-static md_bus_t open_can(const char *spec)
+static void open_can(md_bus_t *bus, const char *spec)
 {
-    md_bus_t bus;
     char why[200] = "";
-    TEST_ASSERT_EQUAL_INT_MESSAGE(0, md_bus_open(&bus, spec, why, sizeof why), why);
-    TEST_ASSERT_EQUAL_INT(MD_BUS_SOCKETCAN, bus.kind);
-    return bus;
+    TEST_ASSERT_EQUAL_INT_MESSAGE(0, md_bus_open(bus, spec, why, sizeof why), why);
+    TEST_ASSERT_EQUAL_INT(MD_BUS_SOCKETCAN, bus->kind);
 }
 
 static md_frame_t make_frame(uint32_t id, uint8_t len, uint8_t flags, uint8_t seed)
@@ -84,9 +82,12 @@ static void test_vcan0_opens_as_can_fd_and_auto_picks_it(void)
 
 static void test_three_endpoints_exchange_frames_without_echo(void)
 {
-    md_bus_t a = open_can("vcan0");
-    md_bus_t b = open_can("vcan0");
-    md_bus_t c = open_can("vcan0");
+    md_bus_t a;
+    open_can(&a, "vcan0");
+    md_bus_t b;
+    open_can(&b, "vcan0");
+    md_bus_t c;
+    open_can(&c, "vcan0");
     const md_frame_t classic = make_frame(0x123, 8, 0, 0xDE);
     const md_frame_t ext = make_frame(0x1ABCDE01u, 3, MD_FRAME_FLAG_EXT, 0x11);
     const md_frame_t fd = make_frame(0x0456, 64, (uint8_t)(MD_FRAME_FLAG_FD | MD_FRAME_FLAG_BRS), 0x5A);
@@ -114,8 +115,10 @@ static void test_three_endpoints_exchange_frames_without_echo(void)
 
 static void test_many_frames_arrive_in_order(void)
 {
-    md_bus_t a = open_can("vcan0");
-    md_bus_t b = open_can("vcan0");
+    md_bus_t a;
+    open_can(&a, "vcan0");
+    md_bus_t b;
+    open_can(&b, "vcan0");
     for (uint32_t i = 0; i < 300u; ++i) {
         const md_frame_t f = make_frame(i, (uint8_t)(i % 9u), 0, (uint8_t)i);
         TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
@@ -134,7 +137,8 @@ static void test_many_frames_arrive_in_order(void)
 
 static void test_cansend_frames_reach_md_bus_and_rtr_is_counted(void)
 {
-    md_bus_t b = open_can("vcan0");
+    md_bus_t b;
+    open_can(&b, "vcan0");
     run("cansend vcan0 5A1#11.22.33");
     run("cansend vcan0 123#R");  // RTR: md_frame_t cannot carry it
     run("cansend vcan0 1F334455##1000102030405060708090A0B");
@@ -163,7 +167,8 @@ static void md_bus_to_candump(const md_frame_t *f, char *line, size_t cap)
     char cmd[160];
     (void)snprintf(cmd, sizeof cmd, "candump -L -n 1 vcan0 > %s 2>&1 &", log);
     run(cmd);
-    md_bus_t a = open_can("vcan0");
+    md_bus_t a;
+    open_can(&a, "vcan0");
     line[0] = '\0';
     for (unsigned i = 0; i < 200u && line[0] == '\0'; ++i) {
         TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, f));
@@ -226,8 +231,10 @@ static void test_interface_errors_are_clear(void)
     TEST_ASSERT_EQUAL_INT(-ENETDOWN, md_bus_open(&bus, "vcan8", why, sizeof why));
     TEST_MESSAGE(why);
     run("ip link set vcan8 up");
-    md_bus_t a = open_can("vcan8");
-    md_bus_t b = open_can("vcan8");
+    md_bus_t a;
+    open_can(&a, "vcan8");
+    md_bus_t b;
+    open_can(&b, "vcan8");
     const md_frame_t fd = make_frame(0x10, 12, MD_FRAME_FLAG_FD, 0);
     TEST_ASSERT_EQUAL_INT(-EMSGSIZE, md_bus_send(&a, &fd));
     TEST_ASSERT_EQUAL_UINT64(1, a.stats.tx_errors);

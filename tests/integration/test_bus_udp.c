@@ -24,12 +24,10 @@
 void setUp(void) {}
 void tearDown(void) {}
 
-static md_bus_t open_udp(const char *spec)
+static void open_udp(md_bus_t *bus, const char *spec)
 {
-    md_bus_t bus;
     char why[160] = "";
-    TEST_ASSERT_EQUAL_INT_MESSAGE(0, md_bus_open(&bus, spec, why, sizeof why), why);
-    return bus;
+    TEST_ASSERT_EQUAL_INT_MESSAGE(0, md_bus_open(bus, spec, why, sizeof why), why);
 }
 
 static md_frame_t make_frame(uint32_t id, uint8_t len, uint8_t flags, uint8_t seed)
@@ -113,9 +111,12 @@ static void test_open_reports_the_group_and_keeps_traffic_on_loopback(void)
 
 static void test_three_endpoints_exchange_classic_and_fd_frames_without_echo(void)
 {
-    md_bus_t a = open_udp("udp");
-    md_bus_t b = open_udp("udp");
-    md_bus_t c = open_udp("udp:57731");
+    md_bus_t a;
+    open_udp(&a, "udp");
+    md_bus_t b;
+    open_udp(&b, "udp");
+    md_bus_t c;
+    open_udp(&c, "udp:57731");
     const md_frame_t classic = make_frame(0x123, 4, 0, 0xDE);
     const md_frame_t fd = make_frame(0x1ABCDE01u, 64,
                                      (uint8_t)(MD_FRAME_FLAG_FD | MD_FRAME_FLAG_EXT | MD_FRAME_FLAG_BRS), 0x5A);
@@ -143,8 +144,10 @@ static void test_three_endpoints_exchange_classic_and_fd_frames_without_echo(voi
 
 static void test_many_frames_arrive_complete_and_in_order(void)
 {
-    md_bus_t a = open_udp("udp");
-    md_bus_t b = open_udp("udp");
+    md_bus_t a;
+    open_udp(&a, "udp");
+    md_bus_t b;
+    open_udp(&b, "udp");
     const uint32_t n = 300;  // well inside the socket buffer
     for (uint32_t i = 0; i < n; ++i) {
         const md_frame_t f = make_frame(i, (uint8_t)(i % 9u), 0, (uint8_t)i);
@@ -162,7 +165,8 @@ static void test_many_frames_arrive_complete_and_in_order(void)
 
 static void test_malformed_datagrams_are_counted_and_ignored(void)
 {
-    md_bus_t b = open_udp("udp");
+    md_bus_t b;
+    open_udp(&b, "udp");
     const int raw = raw_sender();
     const md_frame_t good = make_frame(0x321, 8, 0, 0x11);
     uint8_t dg[MD_BUS_WIRE_MAX + 8u];
@@ -207,8 +211,10 @@ static void test_malformed_datagrams_are_counted_and_ignored(void)
 
 static void test_ports_are_separate_buses(void)
 {
-    md_bus_t a = open_udp("udp");
-    md_bus_t other = open_udp("udp:57732");
+    md_bus_t a;
+    open_udp(&a, "udp");
+    md_bus_t other;
+    open_udp(&other, "udp:57732");
     TEST_ASSERT_EQUAL_STRING("udp:239.71.0.1:57732", other.name);
     const md_frame_t f = make_frame(0x55, 1, 0, 1);
     TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
@@ -219,8 +225,10 @@ static void test_ports_are_separate_buses(void)
 
 static void test_invalid_frame_and_arguments_are_refused(void)
 {
-    md_bus_t a = open_udp("udp");
-    md_bus_t b = open_udp("udp");
+    md_bus_t a;
+    open_udp(&a, "udp");
+    md_bus_t b;
+    open_udp(&b, "udp");
     const md_frame_t bad = make_frame(0x100, 9, 0, 0);
     TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_send(&a, &bad));
     TEST_ASSERT_EQUAL_UINT64(1, a.stats.tx_errors);
@@ -241,7 +249,8 @@ static int64_t now_us(void)
 
 static void test_receive_waits_for_its_timeout_and_no_longer(void)
 {
-    md_bus_t a = open_udp("udp");
+    md_bus_t a;
+    open_udp(&a, "udp");
     md_frame_t r;
     const int64_t t0 = now_us();
     TEST_ASSERT_EQUAL_INT(0, md_bus_receive(&a, &r, 100000));
@@ -256,8 +265,10 @@ static void test_receive_waits_for_its_timeout_and_no_longer(void)
 
 static void test_kernel_drops_are_counted_as_overflow(void)
 {
-    md_bus_t a = open_udp("udp");
-    md_bus_t b = open_udp("udp");
+    md_bus_t a;
+    open_udp(&a, "udp");
+    md_bus_t b;
+    open_udp(&b, "udp");
     // b does not read while a floods: its socket buffer must overflow.
     const uint32_t n = 20000;
     for (uint32_t i = 0; i < n; ++i) {
@@ -308,7 +319,8 @@ static int child_echo(void)
 
 static void test_two_processes_talk_over_the_bus(void)
 {
-    md_bus_t a = open_udp("udp");
+    md_bus_t a;
+    open_udp(&a, "udp");
     const pid_t pid = fork();
     TEST_ASSERT_TRUE(pid >= 0);
     if (pid == 0) {
