@@ -288,6 +288,33 @@ static void test_kernel_drops_are_counted_as_overflow(void)
     md_bus_close(&b);
 }
 
+static void test_round_trip_time_is_reported(void)
+{
+    md_bus_t a;
+    open_udp(&a, "udp");
+    md_bus_t b;
+    open_udp(&b, "udp");
+    const uint32_t n = 2000;
+    const md_frame_t ping = make_frame(0x10, 64, MD_FRAME_FLAG_FD, 1);
+    const md_frame_t pong = make_frame(0x11, 8, 0, 2);
+    const int64_t t0 = now_us();
+    for (uint32_t i = 0; i < n; ++i) {
+        md_frame_t r;
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &ping));
+        TEST_ASSERT_EQUAL_INT(1, md_bus_receive(&b, &r, ARRIVE_US));
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&b, &pong));
+        TEST_ASSERT_EQUAL_INT(1, md_bus_receive(&a, &r, ARRIVE_US));
+        TEST_ASSERT_EQUAL_UINT32(0x11, r.id);
+    }
+    const int64_t dt = now_us() - t0;
+    char msg[128];
+    (void)snprintf(msg, sizeof msg, "UDP bus: %u round trips (64-byte FD ping, 8-byte pong) in %lld us: %.1f us each",
+                   (unsigned)n, (long long)dt, (double)dt / (double)n);
+    TEST_MESSAGE(msg);
+    md_bus_close(&a);
+    md_bus_close(&b);
+}
+
 /// Child: opens its own endpoint, announces itself, answers each frame with
 /// id + 1 until it sees id 0x7FF. Exit status 0 = all well.
 static int child_echo(void)
@@ -357,5 +384,6 @@ int main(void)
     RUN_TEST(test_receive_waits_for_its_timeout_and_no_longer);
     RUN_TEST(test_kernel_drops_are_counted_as_overflow);
     RUN_TEST(test_two_processes_talk_over_the_bus);
+    RUN_TEST(test_round_trip_time_is_reported);
     return UNITY_END();
 }
