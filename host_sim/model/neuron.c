@@ -5,7 +5,7 @@
 
 void neuron_default_model_params(neuron_model_params_t *p)
 {
-    p->falloff_um = 35.0;
+    p->falloff_um = 30.0;
     p->falloff_exp = 2.0;
     p->range_um = 150.0;
     p->damage_um = 12.0;

@@ -41,7 +41,7 @@ typedef enum { NEURON_BIPHASIC = 0, NEURON_TRIPHASIC = 1 } neuron_shape_t;
 
 /// Model parameters shared by all neurons of a session.
 typedef struct {
-    double falloff_um;     ///< default 35 um
+    double falloff_um;     ///< default 30 um
     double falloff_exp;    ///< default 2
     double range_um;       ///< default 150 um: beyond this a neuron is not rendered
     double damage_um;      ///< default 12 um: closer than this the neuron dies

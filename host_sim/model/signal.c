@@ -62,13 +62,15 @@ void sim_noise_filter_init(sim_noise_filter_t *f, const signal_params_t *p)
 
 uint32_t sim_mua_template(double fs, double *out, double *energy)
 {
-    /* a generic distant spike: trough sigma 0.12 ms, repolarisation 0.3 ms */
+    /* a generic distant spike: trough sigma 0.12 ms, repolarisation 0.3 ms,
+     * lobes of equal area (0.4 * 0.3 = 0.12) as after the front-end's
+     * high-pass, so that MUA adds no DC */
     const uint32_t len = (uint32_t)floor(1.6e-3 * fs);
     const uint32_t pre = len / 4u;
     double lo = 0.0, hi = 0.0;
     for (uint32_t i = 0u; i < len && i < SIM_SHORT_WAVE_MAX; ++i) {
         const double u = ((double)i - (double)pre) * 1000.0 / fs;
-        out[i] = -exp(-0.5 * (u / 0.12) * (u / 0.12)) + 0.3 * exp(-0.5 * ((u - 0.45) / 0.3) * ((u - 0.45) / 0.3));
+        out[i] = -exp(-0.5 * (u / 0.12) * (u / 0.12)) + 0.4 * exp(-0.5 * ((u - 0.45) / 0.3) * ((u - 0.45) / 0.3));
         lo = fmin(lo, out[i]);
         hi = fmax(hi, out[i]);
     }
