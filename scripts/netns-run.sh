@@ -19,6 +19,12 @@ for tool in unshare ip; do
         exit 125
     fi
 done
+if ! unshare -rn true 2>/dev/null; then
+    echo "netns-run: cannot create a network namespace (unshare -rn failed): run as root," >&2
+    echo "netns-run: or allow unprivileged user namespaces (kernel.unprivileged_userns_clone=1," >&2
+    echo "netns-run: kernel.apparmor_restrict_unprivileged_userns=0 on Ubuntu >= 23.10)" >&2
+    exit 125
+fi
 # -r maps the caller to root inside, so this also works for a non-root user
 # where user namespaces are allowed; -n gives the new network namespace.
 exec unshare -rn sh -c '
