@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# The project's whole test suite, as the README and CI run it:
+#   1. Python venv (cantools, test tools)
+#   2. host build (preset dev): unit, integration (private netns) and vcan (VM) tests
+#   3. Cortex-M7 build (preset cortex-m7): the unit tests again, under QEMU
+# Options: --skip-target  --skip-vcan  (for quick local runs; CI runs everything)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+
+skip_target=0
+skip_vcan=0
+for arg in "$@"; do
+    case "$arg" in
+        --skip-target) skip_target=1 ;;
+        --skip-vcan) skip_vcan=1 ;;
+        *) echo "test.sh: unknown option $arg" >&2; exit 2 ;;
+    esac
+done
+
+step() { printf '\n==== %s ====\n' "$*"; }
+jobs=$(nproc)
+
+step "python venv"
+scripts/setup-venv.sh
+
+step "host build (preset dev)"
+cmake --preset dev
+cmake --build --preset dev -j "$jobs"
+
+step "host tests: unit + integration"
+exclude="vcan"
+ctest --preset dev -j "$jobs" -LE "$exclude"
+
+if [ "$skip_vcan" -eq 0 ]; then
+    step "vcan tests (real SocketCAN: host vcan0 or a QEMU VM)"
+    ctest --preset dev -L vcan
+fi
+
+if [ "$skip_target" -eq 0 ]; then
+    step "Cortex-M7 build (preset cortex-m7) and target tests under QEMU"
+    cmake --preset cortex-m7
+    cmake --build --preset cortex-m7 -j "$jobs"
+    ctest --preset cortex-m7 -j "$jobs"
+fi
+
+step "all test stages passed"
