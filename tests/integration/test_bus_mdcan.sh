@@ -15,9 +15,11 @@ trap cleanup EXIT
 
 fail() {
     echo "FAIL: $*" >&2
-    for f in "$tmp"/*; do echo "--- $f" >&2; cat "$f" >&2; done
+    for f in "$tmp"/*; do [ -f "$f" ] && { echo "--- $f" >&2; cat "$f" >&2; }; done
     exit 1
 }
+
+[ -x "$MDCAN" ] || fail "no executable mdcan at '$MDCAN'"
 
 # Starts a dump in the background; waits (bounded, 10 s) until it has joined.
 start_dump() {
@@ -30,6 +32,7 @@ start_dump() {
     until grep -qs "listening on" "$tmp/$name.err"; do
         i=$((i + 1))
         [ "$i" -le 500 ] || fail "$name did not start"
+        kill -0 "$!" 2>/dev/null || grep -qs "listening on" "$tmp/$name.err" || fail "$name exited at start"
         sleep 0.02
     done
 }
