@@ -2,8 +2,10 @@
  *   sim-bench [--minutes M] [SCENARIO.yaml]
  * Default: 3 electrodes, 30 kHz, 8 random neurons each within reach, every
  * electrode recorded continuously for M (default 100) simulated minutes in
- * 10 s intervals with a 10 um move after each (moves are instantaneous in
- * wall time: only recorded samples count as simulated time).
+ * 10 s intervals with a 10 um move after each, reversing every 40 moves so
+ * the tips stay among the neurons (the moves happen while recording, so
+ * motion artifacts are included; only recorded samples count as simulated
+ * time).
  * Prints the simulated time, the CPU time, and the speed-up. */
 #define _POSIX_C_SOURCE 200809L
 #include <inttypes.h>
@@ -76,8 +78,10 @@ int main(int argc, char **argv)
         const uint64_t before = done / interval;
         done += n;
         if (done / interval != before) {
+            const int dir = ((done / interval / 40u) % 2u == 0u) ? 1 : -1;
             for (uint32_t e = 0u; e < w->n_electrodes; ++e) {
-                (void)sim_electrode_command(&w->el[e], actuator_steps_for(&w->el[e].act.p, 10.0), 1, 2000.0);
+                (void)sim_electrode_command(&w->el[e], actuator_steps_for(&w->el[e].act.p, 10.0 * dir), dir,
+                                            2000.0);
             }
         }
     }
