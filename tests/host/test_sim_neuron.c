@@ -187,6 +187,30 @@ static void test_appearance_and_disappearance(void)
     TEST_ASSERT_TRUE(last > 190.0);
 }
 
+/* A neuron's own drift moves it (and its SNR peak) after drift_start_s. */
+static void test_neuron_drift_moves_snr_peak(void)
+{
+    sim_electrode_config_t c;
+    sim_electrode_default_config(&c);
+    c.tissue.drift_um_per_min = 0.0;
+    c.tissue.insert_relax_um = 0.0;
+    c.n_neurons = 1u;
+    neuron_default_params(&c.neurons[0]);
+    c.neurons[0].depth_um = 1200.0;
+    c.neurons[0].drift_um_per_min = 4.0;
+    c.neurons[0].drift_start_s = 60.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, sim_electrode_init(&el, &c, 8u, 0u));
+    sim_neuron_truth_t tr;
+    sim_electrode_advance(&el, 30000u * 60u);
+    TEST_ASSERT_EQUAL_size_t(1u, sim_electrode_truth(&el, &tr, 1u));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1200.0, tr.snr_peak_depth_um);
+    const double snr0 = tr.snr;
+    sim_electrode_advance(&el, 30000u * 300u);   /* 5 min of drift: 20 um deeper */
+    TEST_ASSERT_EQUAL_size_t(1u, sim_electrode_truth(&el, &tr, 1u));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 1220.0, tr.snr_peak_depth_um);
+    TEST_ASSERT_TRUE(tr.snr < snr0);   /* the tip (at 1000 um) is now farther away */
+}
+
 static void test_bad_parameters_are_named(void)
 {
     neuron_params_t p;
@@ -208,6 +232,7 @@ int main(void)
     RUN_TEST(test_poisson_isi_shape);
     RUN_TEST(test_intermittent_silences);
     RUN_TEST(test_appearance_and_disappearance);
+    RUN_TEST(test_neuron_drift_moves_snr_peak);
     RUN_TEST(test_bad_parameters_are_named);
     return UNITY_END();
 }
