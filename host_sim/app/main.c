@@ -202,6 +202,37 @@ static int simproc_loop(simproc_t *sp, uint64_t duration_us)
     }
 }
 
+/* Runs the plant on the open bus until the end of the session. */
+static int serve(simproc_t *sp, const sim_cli_t *cli, const scenario_t *sc, simnode_world_t *world, uint64_t seed)
+{
+    simnode_plant_cfg_t cfg;
+    simnode_plant_cfg_default(&cfg);
+    cfg.lockstep = !cli->realtime;
+    cfg.autostart = cli->autostart;
+    cfg.hall_rate_hz = cli->hall_rate_hz;
+    cfg.calib_period_ms = cli->calib_period_ms;
+    const simnode_sink_t sink = {simproc_send, sp};
+    if (simnode_plant_init(&sp->plant, &cfg, world, sink) != MD_OK) {
+        fprintf(stderr, "microdrive-sim: the scenario's plant cannot be served\n");
+        return 1;
+    }
+    const double dur = (cli->duration_s >= 0.0) ? cli->duration_s : sc->duration_s;
+    sp->pace_fps = cli->realtime ? 0u : cli->pace_fps;
+    sp->origin_us = mono_us();
+    for (uint32_t i = 0; i < 3u; i++) {
+        sp->node_origin_us[i] = sp->origin_us;
+    }
+    fprintf(stderr, "microdrive-sim: nodes 2, 3, 4; %u electrodes; %s mode; seed %" PRIu64 "\n",
+            (unsigned)simnode_world_electrodes(world), cli->realtime ? "realtime" : "lockstep", seed);
+    send_heartbeats(sp, sp->origin_us);   /* boot-up messages (NodeState 0) */
+    sp->next_hb_us = sp->origin_us + SIMPROC_HB_PERIOD_US;
+    simnode_plant_start(&sp->plant);
+    install_signals();
+    const int rc = simproc_loop(sp, (dur > 0.0) ? (uint64_t)(dur * 1e6) : 0u);
+    print_stats(sp);
+    return rc;
+}
+
 static int run_bus(const sim_cli_t *cli, const scenario_t *sc, uint64_t seed)
 {
     char err[1024];
@@ -228,32 +259,7 @@ static int run_bus(const sim_cli_t *cli, const scenario_t *sc, uint64_t seed)
         fprintf(stderr, "microdrive-sim: cannot open bus '%s': %s\n", cli->bus, (sp != NULL) ? err : "no memory");
     } else {
         fprintf(stderr, "microdrive-sim: bus %s (%s)\n", sp->bus.name, err);
-        rc = 1;
-        simnode_plant_cfg_t cfg;
-        simnode_plant_cfg_default(&cfg);
-        cfg.lockstep = !cli->realtime;
-        cfg.autostart = cli->autostart;
-        cfg.hall_rate_hz = cli->hall_rate_hz;
-        cfg.calib_period_ms = cli->calib_period_ms;
-        const simnode_sink_t sink = {simproc_send, sp};
-        if (simnode_plant_init(&sp->plant, &cfg, world, sink) != MD_OK) {
-            fprintf(stderr, "microdrive-sim: the scenario's plant cannot be served\n");
-        } else {
-            const double dur = (cli->duration_s >= 0.0) ? cli->duration_s : sc->duration_s;
-            sp->pace_fps = cli->realtime ? 0u : cli->pace_fps;
-            sp->origin_us = mono_us();
-            for (uint32_t i = 0; i < 3u; i++) {
-                sp->node_origin_us[i] = sp->origin_us;
-            }
-            fprintf(stderr, "microdrive-sim: nodes 2, 3, 4; %u electrodes; %s mode; seed %" PRIu64 "\n",
-                    (unsigned)simnode_world_electrodes(world), cli->realtime ? "realtime" : "lockstep", seed);
-            send_heartbeats(sp, sp->origin_us);   /* boot-up messages (NodeState 0) */
-            sp->next_hb_us = sp->origin_us + SIMPROC_HB_PERIOD_US;
-            simnode_plant_start(&sp->plant);
-            install_signals();
-            rc = simproc_loop(sp, (dur > 0.0) ? (uint64_t)(dur * 1e6) : 0u);
-            print_stats(sp);
-        }
+        rc = serve(sp, cli, sc, world, seed);
         md_bus_close(&sp->bus);
     }
     free(sp);
