@@ -84,6 +84,12 @@ typedef enum {
 #define MD_REC_ABORTED 1u
 #define MD_REC_OVERFLOW 2u
 
+/// HALL_CALIB: coefficients c_k (CoeffIndex k < CoeffCount) act on the
+/// normalised code x = (code - code_mid) / code_half; two extra indices carry
+/// code_mid and code_half.
+#define MD_HALL_CALIB_INDEX_CODE_MID 0xF0u
+#define MD_HALL_CALIB_INDEX_CODE_HALF 0xF1u
+
 /// Samples carried by one REC_DATA frame.
 #define MD_REC_SAMPLES_PER_FRAME 30u
 
