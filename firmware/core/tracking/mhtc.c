@@ -1,0 +1,381 @@
+/// @file mhtc.c
+/// MHTC steps 1-8 (thesis §4.2.3): prediction, model classes, MAP-EM per
+/// parent, data association and the best-L children (see mhtc.h).
+#include "tracking/mhtc.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "common/linalg.h"
+#include "tracking/mhtc_internal.h"
+
+#define MHTC_COV_REG 1e-3 /* ridge (relative to the mean eigenvalue) on a Σ_j mapped into a new basis */
+
+static const mhtc_hyp_t g_root = {0}; /* the empty parent of the first interval */
+
+void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
+{
+    if (cfg == NULL) {
+        return;
+    }
+    memset(cfg, 0, sizeof *cfg);
+    cfg->tracker = tracker;
+    cfg->L = MHTC_L_MAX;
+    cfg->g_max = MHTC_G_MAX;
+    cfg->lambda_new = 0.01;   /* Table 4.1 */
+    cfg->lambda_false = 0.015;
+    cfg->pd.pd_max = 0.98;
+    cfg->pd.pd_min = 0.75;
+    cfg->pd.a = 0.6;          /* §4.4.2 */
+    cfg->pd.b = 4.0;
+    cfg->beta = 0.001;
+    cfg->k_miss = 5u;
+    cfg->nn_k_miss = 1u;
+    cfg->q_process = 1.0;
+    cfg->init_var = 1.0;
+    cfg->evidence = (tracker == MHTC_TRACKER_ML_NN) ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
+    em_options_default(&cfg->em);
+    cfg->shape_prior_width = EM_SHAPE_PRIOR_WIDTH;
+    cfg->nn_gate_sigma = 2.0;
+    cfg->gnn_gate_chi2 = 9.21;
+}
+
+md_status_t mhtc_config_check(const mhtc_config_t *c)
+{
+    if (c == NULL) {
+        return MD_E_ARG;
+    }
+    const bool tracker_ok = (c->tracker == MHTC_TRACKER_MHTC) || (c->tracker == MHTC_TRACKER_MAP_NN) ||
+                            (c->tracker == MHTC_TRACKER_ML_NN) || (c->tracker == MHTC_TRACKER_GNN);
+    const bool pd_ok = (c->pd.pd_min > 0.0) && (c->pd.pd_min <= c->pd.pd_max) && (c->pd.pd_max < 1.0) &&
+                       (c->pd.a >= 0.0) && (c->pd.b > 0.0);
+    const bool ok = tracker_ok && pd_ok && (c->L >= 1u) && (c->L <= MHTC_L_MAX) && (c->g_max >= 1u) &&
+                    (c->g_max <= MHTC_G_MAX) && (c->lambda_new > 0.0) && (c->lambda_false > 0.0) &&
+                    (c->beta >= 0.0) && (c->beta < 1.0) && (c->k_miss >= 1u) &&
+                    (c->k_miss <= MHTC_HIST_MAX) && (c->nn_k_miss >= 1u) && (c->nn_k_miss <= MHTC_HIST_MAX) &&
+                    (c->q_process > 0.0) && isfinite(c->q_process) && (c->init_var > 0.0) &&
+                    isfinite(c->init_var) && (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) &&
+                    (c->em.tol > 0.0) && (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) &&
+                    (c->gnn_gate_chi2 > 0.0) &&
+                    ((c->evidence == CLUSTER_EVIDENCE_LAPLACE) || (c->evidence == CLUSTER_EVIDENCE_BIC));
+    return ok ? MD_OK : MD_E_ARG;
+}
+
+md_status_t mhtc_init(mhtc_state_t *st, const mhtc_config_t *cfg)
+{
+    if ((st == NULL) || (mhtc_config_check(cfg) != MD_OK)) {
+        return MD_E_ARG;
+    }
+    memset(st, 0, sizeof *st);
+    st->cfg = *cfg;
+    st->next_id = 1u;
+    return MD_OK;
+}
+
+const char *mhtc_tracker_name(mhtc_tracker_t tracker)
+{
+    switch (tracker) {
+    case MHTC_TRACKER_MHTC:
+        return "mhtc";
+    case MHTC_TRACKER_MAP_NN:
+        return "map-nn";
+    case MHTC_TRACKER_ML_NN:
+        return "ml-nn";
+    case MHTC_TRACKER_GNN:
+        return "gnn";
+    default:
+        return "?";
+    }
+}
+
+md_status_t mhtc_tracker_parse(const char *name, mhtc_tracker_t *tracker)
+{
+    if ((name == NULL) || (tracker == NULL)) {
+        return MD_E_ARG;
+    }
+    for (int t = (int)MHTC_TRACKER_MHTC; t <= (int)MHTC_TRACKER_GNN; ++t) {
+        if (strcmp(name, mhtc_tracker_name((mhtc_tracker_t)t)) == 0) {
+            *tracker = (mhtc_tracker_t)t;
+            return MD_OK;
+        }
+    }
+    return MD_E_ARG;
+}
+
+const mhtc_hyp_t *mhtc_parent(const mhtc_state_t *st, size_t p)
+{
+    return (st->n_hyp == 0u) ? &g_root : &st->hyp[p];
+}
+
+static bool mhtc_input_ok(const mhtc_state_t *st, const mhtc_input_t *in, const mhtc_workspace_t *ws)
+{
+    if ((in == NULL) || (ws == NULL) || (in->basis == NULL) || (in->noise_cov == NULL) ||
+        (in->n > EM_N_MAX) || ((in->n > 0u) && ((in->y == NULL) || (in->wave == NULL))) ||
+        !(in->duration_s > 0.0) || !isfinite(in->duration_s)) {
+        return false;
+    }
+    const pca_basis_t *b = in->basis;
+    if ((b->d < 1u) || (b->d > EM_D_MAX) || (b->d_w < b->d) || (b->d_w > KF_DW_MAX) ||
+        (in->stride < b->d_w) || ((st->d_w != 0u) && (st->d_w != b->d_w))) {
+        return false;
+    }
+    if (!linalg_all_finite(b->b, b->d * b->d_w) || !linalg_all_finite(in->noise_cov, b->d * b->d) ||
+        ((in->n > 0u) && !linalg_all_finite(in->y, in->n * b->d))) {
+        return false;
+    }
+    for (size_t i = 0u; i < in->n; ++i) {
+        if (!linalg_all_finite(&in->wave[i * in->stride], b->d_w)) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/* Σ_j (waveform space, rank ≤ d) seen through B^k, with a small ridge so it stays SPD. */
+static void mhtc_map_sigma(const mhtc_track_t *t, const double *h, size_t d, size_t dw, double *c)
+{
+    double hu[KF_D_MAX][KF_D_MAX];
+    for (size_t i = 0u; i < t->sigma_rank; ++i) {
+        for (size_t r = 0u; r < d; ++r) {
+            double s = 0.0;
+            for (size_t q = 0u; q < dw; ++q) {
+                s += h[r * dw + q] * (double)t->sigma_vec[i][q];
+            }
+            hu[i][r] = s;
+        }
+    }
+    double tr = 0.0;
+    for (size_t i = 0u; i < t->sigma_rank; ++i) {
+        tr += t->sigma_val[i];
+    }
+    const double ridge = MHTC_COV_REG * ((tr > 0.0) ? tr / (double)d : 1.0);
+    for (size_t r = 0u; r < d; ++r) {
+        for (size_t q = 0u; q < d; ++q) {
+            double s = (r == q) ? ridge : 0.0;
+            for (size_t i = 0u; i < t->sigma_rank; ++i) {
+                s += t->sigma_val[i] * hu[i][r] * hu[i][q];
+            }
+            c[r * d + q] = s;
+        }
+    }
+}
+
+/* Step 1: eq. 4.7-4.9 and S_j (eq. 4.13) of every live record, once per record. */
+static md_status_t mhtc_predict_pool(const mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws)
+{
+    const size_t d = in->basis->d;
+    const size_t dw = in->basis->d_w;
+    for (size_t r = 0u; r < MHTC_POOL; ++r) {
+        const mhtc_track_t *t = &st->pool[r];
+        if (t->refs == 0u) {
+            continue;
+        }
+        kf_state_t kf = t->kf;
+        double hlh[EM_D_MAX * EM_D_MAX];
+        if ((kf_predict(&kf, st->cfg.q_process) != MD_OK) ||
+            (kf_measure(&kf, in->basis->b, d, ws->pred_mu[r], hlh) != MD_OK)) {
+            return MD_E_NUMERIC;
+        }
+        mhtc_map_sigma(t, in->basis->b, d, dw, ws->pred_c[r]);
+        const double n = (t->n_last > 1.0) ? t->n_last : 1.0;
+        for (size_t i = 0u; i < d * d; ++i) {
+            ws->pred_s[r][i] = hlh[i] + ws->pred_c[r][i] / n; /* S = HΛHᵀ + R_j, R_j = Σ_j/n_j */
+        }
+    }
+    return MD_OK;
+}
+
+size_t mhtc_fill_targets(const mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
+{
+    const mhtc_hyp_t *h = mhtc_parent(st, p);
+    for (size_t j = 0u; j < h->n_tracks; ++j) {
+        const size_t r = h->track[j];
+        em_target_t *t = &ws->targets[j];
+        memcpy(t->mean, ws->pred_mu[r], sizeof t->mean);
+        memcpy(t->s_cov, ws->pred_s[r], sizeof t->s_cov);
+        memcpy(t->cluster_cov, ws->pred_c[r], sizeof t->cluster_cov);
+        t->p_detect = st->pool[r].p_detect;
+    }
+    return h->n_tracks;
+}
+
+/* Steps 4-6 for one model class: seeds from the targets, MAP-EM, labels, evidence P4. */
+static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws,
+                           mhtc_model_t *m)
+{
+    cluster_workspace_t *c = &ws->cl;
+    m->usable = false;
+    if (em_seed_from_targets(data, ws->targets, nt, m->g, &c->seed_ws, c->seed) != MD_OK) {
+        return;
+    }
+    const md_status_t fs = em_fit(data, &c->outlier, &c->prior, c->seed, m->g, &st->cfg.em, c->z, &m->fit);
+    if ((fs != MD_OK) && (fs != MD_E_NOCONVERGE)) {
+        return;
+    }
+    em_labels(c->z, data->n, m->g, m->labels);
+    if (st->cfg.evidence == CLUSTER_EVIDENCE_BIC) {
+        m->log_ev = em_evidence_bic(m->fit.log_lik, data->d, m->g, data->n);
+        m->usable = isfinite(m->log_ev);
+        return;
+    }
+    if ((em_evidence_laplace(data, &c->outlier, &c->prior, &m->fit.params, st->cfg.shape_prior_width, &c->ev,
+                             &m->log_ev) == MD_OK) &&
+        isfinite(m->log_ev)) {
+        m->usable = true;
+        return;
+    }
+    /* No Laplace evidence (Hessian not PD, e.g. π_0 at its boundary): BIC/2 instead of losing the
+     * model, counted. Its scale differs from Laplace by O(η) terms: see docs/mhtc.md. */
+    st->stats.evidence_fallbacks++;
+    m->log_ev = em_evidence_bic(m->fit.log_lik, data->d, m->g, data->n);
+    m->usable = isfinite(m->log_ev);
+}
+
+/* Step 7: A* of eq. 4.25 from ζ (eq. 4.26) and the L best assignments. */
+static bool mhtc_associate(mhtc_state_t *st, mhtc_workspace_t *ws, mhtc_model_t *m, size_t nt)
+{
+    double pd[MHTC_TARGETS_MAX];
+    for (size_t j = 0u; j < nt; ++j) {
+        pd[j] = ws->targets[j].p_detect;
+    }
+    if (mhtc_assoc_costs(&m->fit.zeta[0][0], EM_J_MAX + 1u, m->g, pd, nt, st->cfg.lambda_new,
+                         st->cfg.lambda_false, ws->cost) != MD_OK) {
+        return false;
+    }
+    ws->murty.solves = 0u;
+    if ((murty_best(ws->cost, m->g, nt + 2u * m->g, st->cfg.L, &ws->murty, m->sol, &m->n_sol) != MD_OK) ||
+        (m->n_sol == 0u)) {
+        return false;
+    }
+    st->stats.murty_solves += ws->murty.solves;
+    double c[MHTC_L_MAX];
+    for (size_t l = 0u; l < m->n_sol; ++l) {
+        c[l] = m->sol[l].cost;
+    }
+    m->log_norm = mhtc_log_norm(c, m->n_sol); /* Remark 4.3: normalise over the L best */
+    return true;
+}
+
+size_t mhtc_empty_model(mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
+{
+    if (ws->n_models >= MHTC_MODELS_MAX) {
+        return MHTC_MODELS_MAX;
+    }
+    const mhtc_hyp_t *h = mhtc_parent(st, p);
+    double pd[MHTC_TARGETS_MAX];
+    for (size_t j = 0u; j < h->n_tracks; ++j) {
+        pd[j] = st->pool[h->track[j]].p_detect;
+    }
+    mhtc_model_t *m = &ws->model[ws->n_models];
+    memset(m, 0, sizeof *m);
+    m->parent = (uint8_t)p;
+    m->usable = true;
+    m->n_sol = 1u;
+    if (mhtc_log_p3(pd, h->n_tracks, 0u, st->cfg.lambda_new + st->cfg.lambda_false, &m->log_p3) != MD_OK) {
+        m->log_p3 = 0.0;
+    }
+    return ws->n_models++;
+}
+
+/* Steps 2-7 for parent p: P3 pruning (eq. 4.11), prior (eq. 4.12), fits, associations. */
+static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws,
+                               size_t p)
+{
+    const size_t nt = mhtc_fill_targets(st, ws, p);
+    const double l0 = st->cfg.lambda_new + st->cfg.lambda_false;
+    double pd[MHTC_TARGETS_MAX];
+    for (size_t j = 0u; j < nt; ++j) {
+        pd[j] = ws->targets[j].p_detect;
+    }
+    if (em_prior_init(data->d, ws->targets, nt, l0, volume, &ws->cl.prior) != MD_OK) {
+        st->stats.models_failed += (uint32_t)st->cfg.g_max;
+        return;
+    }
+    for (size_t g = 1u; g <= st->cfg.g_max; ++g) {
+        double lp3 = 0.0;
+        if ((mhtc_log_p3(pd, nt, g, l0, &lp3) != MD_OK) || !(exp(lp3) > st->cfg.beta)) {
+            st->stats.models_pruned++; /* eq. 4.11 */
+            continue;
+        }
+        mhtc_model_t *m = &ws->model[ws->n_models];
+        memset(m, 0, sizeof *m);
+        m->g = (uint8_t)g;
+        m->parent = (uint8_t)p;
+        m->log_p3 = lp3;
+        mhtc_fit_model(st, data, nt, ws, m);
+        m->usable = m->usable && mhtc_associate(st, ws, m, nt);
+        if (!m->usable) {
+            st->stats.models_failed++;
+            continue;
+        }
+        ws->n_models++;
+    }
+}
+
+/* Step 8: every child of every model, scored by eq. 4.30, offered to the best-L list. */
+static void mhtc_collect(mhtc_state_t *st, mhtc_workspace_t *ws)
+{
+    ws->n_cand = 0u;
+    for (size_t m = 0u; m < ws->n_models; ++m) {
+        const mhtc_model_t *mod = &ws->model[m];
+        const double base = mod->log_p3 + mod->log_ev + mhtc_parent(st, mod->parent)->log_prob;
+        for (size_t s = 0u; s < mod->n_sol; ++s) {
+            if (mhtc_child_track_count(st, ws, m, s, st->cfg.k_miss) > MHTC_TARGETS_MAX) {
+                st->stats.target_overflow++;
+                continue;
+            }
+            mhtc_cand_t c;
+            memset(&c, 0, sizeof c);
+            c.model = (uint8_t)m;
+            c.sol = (uint8_t)s;
+            c.log_assoc = (mod->g > 0u) ? -mod->sol[s].cost - mod->log_norm : 0.0; /* eq. 4.30 ratio */
+            c.score = c.log_assoc + base;                                          /* × P3 P4 P5 */
+            mhtc_solution_tags(st, ws, m, s, c.tag);
+            mhtc_offer(st, ws, &c);
+        }
+    }
+}
+
+static md_status_t mhtc_run_mhtc(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws)
+{
+    const em_data_t data = {in->y, in->n, in->basis->d};
+    const size_t parents = (st->n_hyp == 0u) ? 1u : st->n_hyp;
+    double volume = 0.0;
+    ws->n_models = 0u;
+    const bool data_ok = (in->n > 0u) && (em_bounding_volume(&data, &volume) == MD_OK) &&
+                         (em_outlier_init(data.d, in->noise_cov, volume, &ws->cl.outlier) == MD_OK);
+    for (size_t p = 0u; data_ok && (p < parents); ++p) {
+        mhtc_expand_parent(st, &data, volume, ws, p);
+    }
+    if (ws->n_models == 0u) {
+        st->stats.empty_intervals++; /* nothing clusterable: every parent continues with all tracks missed */
+        for (size_t p = 0u; p < parents; ++p) {
+            (void)mhtc_empty_model(st, ws, p);
+        }
+    }
+    mhtc_collect(st, ws);
+    return (ws->n_cand > 0u) ? MD_OK : MD_E_DEGENERATE;
+}
+
+md_status_t mhtc_step(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_result_t *out)
+{
+    if ((st == NULL) || (out == NULL)) {
+        return MD_E_ARG;
+    }
+    if (!mhtc_input_ok(st, in, ws) || (mhtc_config_check(&st->cfg) != MD_OK)) {
+        st->stats.step_errors++;
+        return MD_E_ARG;
+    }
+    memset(out, 0, sizeof *out);
+    md_status_t rc = mhtc_predict_pool(st, in, ws);
+    if (rc == MD_OK) {
+        rc = (st->cfg.tracker == MHTC_TRACKER_MHTC) ? mhtc_run_mhtc(st, in, ws) : mhtc_baseline(st, in, ws);
+    }
+    if (rc == MD_OK) {
+        rc = mhtc_commit(st, in, ws, out);
+    }
+    if (rc != MD_OK) {
+        st->stats.step_errors++;
+    }
+    return rc;
+}

@@ -1,0 +1,262 @@
+/// @file mhtc.h
+/// Multiple hypothesis tracking of clusters (thesis ch. 4) for one electrode,
+/// plus three single-hypothesis baselines behind the same interface.
+///
+/// One call of mhtc_step() processes one recording interval T_k (§4.2.3):
+///  1. predict every track of every parent hypothesis (kalman.h, eq. 4.7-4.9,
+///     S_j of eq. 4.13 with the track's last R_j = Σ_j/n_j mapped into B^k);
+///  2. per parent, model classes G = 1..g_max pruned by P3 > β (eq. 4.11, 4.32);
+///  3-6. MAP-EM of each surviving model under the parent's mean prior
+///     (eq. 4.12-4.14), seeds from the predicted targets, Laplace (or BIC) evidence P4;
+///  7. A* = -log A (eq. 4.25) and the L best assignments by murty_best();
+///  8. eq. 4.30 (normalised over the L best of the same model, Remark 4.3) ×
+///     P3 × P4 × P5; the best L children survive, duplicates pruned (§4.4.1);
+///  9. Kalman update of detected tracks (eq. 4.15-4.17), new tracks started,
+///     tracks with K_miss consecutive misses deleted, P_d from the firing rate.
+///
+/// Memory (why it scales): hypotheses do not own tracks. A track record lives
+/// once in a per-electrode pool and hypotheses hold indices with reference
+/// counts; a record is copied only when an interval changes it (copy on
+/// write), and children that make the same change (same parent record, same
+/// model, same cluster) share the copy. The new generation is staged in the
+/// shared workspace and then replaces the old one. If the pool cannot hold the
+/// generation, the least probable surviving hypotheses are dropped until it
+/// can (counted in mhtc_stats_t.pool_drops).
+///
+/// Baselines (mhtc_tracker_t): the same track records and Kalman filter, one
+/// hypothesis, the best-evidence model of cluster.h, and:
+/// - MAP-NN: MAP clusters, each cluster to argmax_j ζ_gj (j = 0: new track),
+///   greedily in decreasing ζ so a track takes at most one cluster (§3.4);
+/// - ML-NN: ML clusters (HAC seeds, BIC), nearest predicted track within
+///   nn_gate_sigma standard deviations (squared Mahalanobis under S_j),
+///   greedily by distance (§3.5 footnote 12);
+/// - GNN: MAP clusters, one lap_solve on A* with pairs outside the gate
+///   (squared Mahalanobis > gnn_gate_chi2) forbidden.
+/// The NN baselines keep tracks only K_miss = nn_k_miss intervals (thesis
+/// ch. 3: the prior of T_k is the clusters of T_{k-1}, so 1 by default).
+///
+/// No heap, no recursion, every loop bounded by the capacities below.
+#ifndef MHTC_H
+#define MHTC_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "cluster/cluster.h"
+#include "common/md_status.h"
+#include "features/pca.h"
+#include "md_config.h"
+#include "tracking/kalman.h"
+#include "tracking/mhtc_prob.h"
+#include "tracking/murty.h"
+
+#define MHTC_L_MAX MD_L_MAX                  ///< global hypotheses kept
+#define MHTC_TARGETS_MAX MD_MAX_TARGETS      ///< tracks in one hypothesis
+#define MHTC_POOL MD_TRACK_POOL              ///< track records per electrode
+#define MHTC_G_MAX MD_G_MAX                  ///< clusters per model
+#define MHTC_HIST_MAX 8u                     ///< intervals of assignment/rank history (≥ K_miss)
+#define MHTC_MODELS_MAX (MHTC_L_MAX * MHTC_G_MAX) ///< model hypotheses of one interval
+#define MHTC_ID_FALSE (-1)                   ///< "false cluster" in assignment lists and labels
+
+_Static_assert(MHTC_POOL >= MHTC_TARGETS_MAX, "one hypothesis must fit in the pool");
+_Static_assert(MHTC_POOL <= 255u, "pool indices are uint8_t");
+_Static_assert(MHTC_TARGETS_MAX <= MHTC_PROB_NT_MAX, "A must hold every target");
+_Static_assert(MHTC_MODELS_MAX <= 255u, "model slots are uint8_t");
+_Static_assert(MHTC_HIST_MAX <= 16u, "history is shifted, keep it short");
+
+typedef enum {
+    MHTC_TRACKER_MHTC = 0, ///< the full multiple hypothesis tracker
+    MHTC_TRACKER_MAP_NN,   ///< MAP clusters + argmax ζ
+    MHTC_TRACKER_ML_NN,    ///< ML clusters + nearest neighbour within 2 σ
+    MHTC_TRACKER_GNN       ///< MAP clusters + gated global nearest neighbour
+} mhtc_tracker_t;
+
+/// Parameters (Table 4.1 defaults from mhtc_config_default; all settable).
+typedef struct {
+    mhtc_tracker_t tracker;
+    size_t L;                    ///< hypotheses kept, 1..MHTC_L_MAX (8)
+    size_t g_max;                ///< largest model, 1..MHTC_G_MAX (4)
+    double lambda_new;           ///< λν (0.01)
+    double lambda_false;         ///< λφ (0.015)
+    mhtc_pd_rule_t pd;           ///< P_d,max 0.98, P_d,min 0.75, a 0.6, b 4
+    double beta;                 ///< model-class pruning threshold on P3 (0.001)
+    uint32_t k_miss;             ///< consecutive misses before deletion, 1..MHTC_HIST_MAX (5)
+    uint32_t nn_k_miss;          ///< the same for MAP-NN / ML-NN (1)
+    double q_process;            ///< Q = q·I, waveform units² per interval (> 0)
+    double init_var;             ///< variance of unmeasured waveform directions of a new track (> 0)
+    cluster_evidence_t evidence; ///< P4: Laplace (thesis) or BIC
+    em_options_t em;             ///< EM iteration bound/tolerance
+    double shape_prior_width;    ///< see em_evidence.h
+    double nn_gate_sigma;        ///< ML-NN gate in standard deviations (2)
+    double gnn_gate_chi2;        ///< GNN gate on the squared Mahalanobis distance (9.21: χ²₂ 99 %)
+} mhtc_config_t;
+
+/// One track record (shared by every hypothesis that references it).
+typedef struct {
+    kf_state_t kf;                           ///< mean waveform and its covariance
+    float sigma_vec[KF_D_MAX][KF_DW_MAX];    ///< last Σ_j in waveform space: Σ s_i u_i u_iᵀ
+    double sigma_val[KF_D_MAX];
+    double n_last;                           ///< spikes n_j of the last detection
+    double p_detect;                         ///< P_d,j for the next interval
+    double rate_hz;                          ///< firing rate in the latest interval (0 if missed)
+    uint32_t id;                             ///< stable ID, never reused on this electrode
+    uint32_t born;                           ///< interval of the first detection
+    uint16_t refs;                           ///< hypotheses referencing this record
+    uint8_t misses;                          ///< consecutive missed detections
+    uint8_t sigma_rank;
+    uint8_t cluster;                         ///< cluster (1..G) of the latest interval, 0 = missed
+} mhtc_track_t;
+
+/// One global hypothesis H_l^{1:k}.
+typedef struct {
+    double log_prob;                         ///< log P(H|Y^{1:k}), normalised over the survivors
+    double log_assoc;                        ///< log of eq. 4.30's assignment ratio at k
+    double log_p3, log_p4;                   ///< P3, P4 of the model chosen at k
+    uint8_t n_tracks;
+    uint8_t track[MHTC_TARGETS_MAX];         ///< pool indices
+    uint8_t g;                               ///< clusters of its model at k
+    uint8_t hist_len;                        ///< valid history entries
+    uint8_t hist_g[MHTC_HIST_MAX];           ///< G per interval, newest first
+    int32_t hist_id[MHTC_HIST_MAX][MHTC_G_MAX]; ///< track ID of each cluster (MHTC_ID_FALSE), newest first
+    uint8_t rank_hist[MHTC_HIST_MAX];        ///< rank (1 = leading) of this lineage, newest first
+} mhtc_hyp_t;
+
+/// Counters: every failure or forced decision is counted, nothing is silent.
+typedef struct {
+    uint32_t steps;            ///< intervals processed
+    uint32_t step_errors;      ///< mhtc_step calls that returned an error
+    uint32_t models_pruned;    ///< model classes with P3 ≤ β (eq. 4.11)
+    uint32_t models_failed;    ///< EM/evidence failures of surviving model classes
+    uint32_t evidence_fallbacks; ///< models whose Laplace evidence failed and used BIC/2
+    uint32_t empty_intervals;  ///< intervals where no model was usable (all tracks missed)
+    uint32_t dup_pruned;       ///< children dropped as duplicates (§4.4.1)
+    uint32_t target_overflow;  ///< children dropped: more than MHTC_TARGETS_MAX tracks
+    uint32_t pool_drops;       ///< hypotheses dropped because the track pool was full
+    uint32_t kf_failures;      ///< Kalman updates rejected (track kept with its prediction)
+    uint32_t tracks_deleted;   ///< records retired after K_miss misses
+    uint32_t murty_solves;     ///< LAP solves inside Murty (benchmark figure)
+} mhtc_stats_t;
+
+/// Tracker state of one electrode (persistent between intervals).
+typedef struct {
+    mhtc_config_t cfg;
+    mhtc_track_t pool[MHTC_POOL];
+    mhtc_hyp_t hyp[MHTC_L_MAX];              ///< sorted, hyp[0] leading
+    size_t n_hyp;                            ///< 0 before the first interval
+    uint32_t next_id;                        ///< next track ID (monotonic, starts at 1)
+    uint32_t interval;                       ///< intervals processed
+    size_t d_w;                              ///< waveform length fixed by the first interval
+    mhtc_stats_t stats;
+} mhtc_state_t;
+
+/// The data of one interval (borrowed).
+typedef struct {
+    const double *y;             ///< n × d features (pca_project_all)
+    size_t n;                    ///< spikes, ≤ EM_N_MAX
+    const double *wave;          ///< n waveforms, row i at wave[i*stride], d_w samples
+    size_t stride;
+    const pca_basis_t *basis;    ///< B^k = H^k, d × d_w
+    const double *noise_cov;     ///< Ξ, d × d (qm_noise_feature_cov)
+    double duration_s;           ///< interval length for firing rates (> 0)
+} mhtc_input_t;
+
+/// A model hypothesis fitted in this interval (workspace, valid until the next step).
+typedef struct {
+    em_fit_t fit;
+    double log_ev;               ///< P4
+    double log_p3;               ///< P3
+    double log_norm;             ///< log Σ over its L best of Π A (eq. 4.30 denominator)
+    size_t n_sol;
+    lap_solution_t sol[MHTC_L_MAX];
+    uint8_t parent;              ///< parent hypothesis index (0 for the root)
+    uint8_t g;
+    bool usable;
+    uint8_t labels[EM_N_MAX];    ///< argmax_g z_ig, 0 = outlier
+} mhtc_model_t;
+
+/// A child hypothesis under evaluation.
+typedef struct {
+    double score;                ///< unnormalised log P of eq. 4.30
+    double log_assoc;
+    uint8_t model;
+    uint8_t sol;
+    int32_t tag[MHTC_G_MAX];     ///< per cluster: track ID, MHTC_ID_FALSE, or a provisional new-track tag
+} mhtc_cand_t;
+
+/// Shared per-interval workspace (one electrode at a time; no state kept).
+typedef struct {
+    cluster_workspace_t cl;                  ///< EM scratch, outlier, prior, seeds, Hessian
+    cluster_result_t clr;                    ///< baselines' model classes
+    mhtc_model_t model[MHTC_MODELS_MAX];
+    size_t n_models;
+    double pred_mu[MHTC_POOL][EM_D_MAX];     ///< μ̂_j^{k|k-1} per pool record (eq. 4.9)
+    double pred_s[MHTC_POOL][EM_D_MAX * EM_D_MAX];   ///< S_j (eq. 4.13)
+    double pred_c[MHTC_POOL][EM_D_MAX * EM_D_MAX];   ///< Σ_j mapped into B^k (seeding)
+    em_target_t targets[EM_J_MAX];
+    double cost[LAP_MAX_ROWS * LAP_MAX_COLS];
+    murty_workspace_t murty;
+    mhtc_cand_t cand[MHTC_L_MAX];
+    size_t n_cand;
+    mhtc_track_t staged[MHTC_POOL];          ///< the next generation of records
+    int16_t staged_src[MHTC_POOL];           ///< key: source record (-1 new)
+    int16_t staged_model[MHTC_POOL];         ///< key: model slot (-1 missed)
+    uint8_t staged_g[MHTC_POOL];             ///< key: cluster 1..G (0 missed)
+    size_t n_staged;
+    mhtc_hyp_t next[MHTC_L_MAX];
+    kf_work_t kf;
+    double wsum[KF_DW_MAX];
+} mhtc_workspace_t;
+
+/// Per-track report of the leading hypothesis.
+typedef struct {
+    uint32_t id;
+    uint8_t cluster;             ///< 1..G in this interval's model, 0 = missed
+    uint8_t misses;
+    double p_detect;
+    double rate_hz;
+    double mean_feat[EM_D_MAX];  ///< posterior mean waveform projected on B^k
+} mhtc_track_report_t;
+
+/// Outcome of one interval (the leading hypothesis, plus every survivor's rank/probability).
+typedef struct {
+    size_t n_hyp;
+    double hyp_prob[MHTC_L_MAX];               ///< P(H_l|Y^{1:k}) of each survivor, descending
+    uint8_t hyp_rank_hist[MHTC_L_MAX][MHTC_HIST_MAX]; ///< each survivor's lineage ranks, newest first
+    uint8_t hyp_hist_len;
+    size_t g;                                  ///< clusters of the leading hypothesis' model
+    em_params_t params;                        ///< its Θ̂ (mean, shape, λ, π)
+    double n_soft[EM_G_MAX + 1u];
+    int32_t cluster_track[MHTC_G_MAX];         ///< track ID per cluster, MHTC_ID_FALSE = false cluster
+    uint8_t labels[EM_N_MAX];                  ///< cluster per spike (0 = outlier)
+    size_t n_tracks;
+    mhtc_track_report_t track[MHTC_TARGETS_MAX];
+    double log_p3, log_p4, log_assoc;
+    size_t models_fitted;                      ///< model hypotheses clustered this interval
+} mhtc_result_t;
+
+/// Table 4.1 defaults for `tracker`; q_process and init_var default to 1.0
+/// (waveform units²) and should be calibrated to the signal's scale.
+void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker);
+
+/// MD_OK if every field is in range (see mhtc_config_t), else MD_E_ARG.
+md_status_t mhtc_config_check(const mhtc_config_t *cfg);
+
+/// Resets st (no hypotheses, IDs from 1) with a copy of cfg. MD_E_ARG on a bad cfg.
+md_status_t mhtc_init(mhtc_state_t *st, const mhtc_config_t *cfg);
+
+/// Processes one interval (steps 1-9 above, or the configured baseline) and
+/// fills out with the leading hypothesis. On an error nothing in st changes
+/// except stats.step_errors. n = 0 or too few spikes for any model is not an
+/// error: every track is missed. MD_E_ARG on bad input (d, d_w mismatch with
+/// earlier intervals, NULLs, non-finite values). Worst case
+/// O(L · g_max · EM + L² g_max · Murty); ws is the shared workspace.
+md_status_t mhtc_step(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_result_t *out);
+
+/// Short name of a tracker ("mhtc", "map-nn", "ml-nn", "gnn").
+const char *mhtc_tracker_name(mhtc_tracker_t tracker);
+
+/// Parses a name of mhtc_tracker_name(); MD_E_ARG if unknown.
+md_status_t mhtc_tracker_parse(const char *name, mhtc_tracker_t *tracker);
+
+#endif

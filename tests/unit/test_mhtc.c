@@ -1,0 +1,322 @@
+/// @file test_mhtc.c
+/// Scripted MHTC scenarios on synthetic clustered intervals (thesis §4.2.3,
+/// §4.4.1): a silent neuron keeps its ID, a new neuron gets a new ID, a
+/// one-interval false cluster is not made a track, the best hypothesis was
+/// ranked below first when it was born (delayed decision), and memory
+/// sharing/limits hold. Small enough for the QEMU target.
+#include <math.h>
+#include <string.h>
+
+#include "common/md_rng.h"
+#include "features/pca.h"
+#include "metrics/quality.h"
+#include "tracking/mhtc.h"
+#include "unity.h"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+#define DW 16u
+#define D 2u
+#define N_MAX 200u
+#define N_NOISE 64u
+#define NOISE_SD 1.0
+
+static mhtc_state_t g_st;
+static mhtc_workspace_t g_ws;
+static mhtc_result_t g_out;
+static pca_work_t g_pw;
+static pca_basis_t g_basis;
+static double g_wave[N_MAX][DW];
+static double g_noise[N_NOISE][DW];
+static double g_y[N_MAX * D];
+static double g_xi[D * D];
+static uint8_t g_truth[N_MAX]; /* generating neuron per spike (0 = outlier) */
+static size_t g_n;
+static md_rng_t g_rng;
+
+/* Neuron templates: a negative peak and a positive rebound, shape set by (centre, width, amplitude). */
+static double template_at(int neuron, size_t i)
+{
+    const double c[4] = {0.0, 5.0, 7.0, 4.0};
+    const double a[4] = {0.0, -12.0, -7.0, 9.0};
+    const double w[4] = {1.0, 1.2, 2.5, 1.0};
+    const double t = ((double)i - c[neuron]) / w[neuron];
+    return a[neuron] * exp(-0.5 * t * t) - 0.4 * a[neuron] * exp(-0.5 * (t - 3.0) * (t - 3.0) / 4.0);
+}
+
+static void add_spikes(int neuron, size_t count)
+{
+    for (size_t k = 0u; (k < count) && (g_n < N_MAX); ++k, ++g_n) {
+        for (size_t i = 0u; i < DW; ++i) {
+            g_wave[g_n][i] = template_at(neuron, i) + NOISE_SD * md_rng_gauss(&g_rng);
+        }
+        g_truth[g_n] = (uint8_t)neuron;
+    }
+}
+
+/* A tight transient group (a "false cluster"): one random waveform plus small jitter. */
+static void add_transient(size_t count)
+{
+    double base[DW];
+    for (size_t i = 0u; i < DW; ++i) {
+        base[i] = 6.0 * sin(0.7 * (double)i);
+    }
+    for (size_t k = 0u; (k < count) && (g_n < N_MAX); ++k, ++g_n) {
+        for (size_t i = 0u; i < DW; ++i) {
+            g_wave[g_n][i] = base[i] + NOISE_SD * md_rng_gauss(&g_rng);
+        }
+        g_truth[g_n] = 9u;
+    }
+}
+
+/* PCA, features and Ξ of the interval built so far, then one tracker step. */
+static md_status_t run_interval(void)
+{
+    for (size_t k = 0u; k < N_NOISE; ++k) {
+        for (size_t i = 0u; i < DW; ++i) {
+            g_noise[k][i] = NOISE_SD * md_rng_gauss(&g_rng);
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(&g_wave[0][0], g_n, DW, DW, D, &g_pw, &g_basis));
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_project_all(&g_basis, &g_wave[0][0], g_n, DW, g_y));
+    TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_feature_cov(&g_basis, &g_noise[0][0], N_NOISE, DW, g_xi));
+    const mhtc_input_t in = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0};
+    const md_status_t rc = mhtc_step(&g_st, &in, &g_ws, &g_out);
+    g_n = 0u;
+    return rc;
+}
+
+/* Track ID the leading hypothesis gives to the majority of `neuron`'s spikes (-2 if none). */
+static int32_t id_of(int neuron)
+{
+    size_t votes[MHTC_G_MAX + 1u] = {0};
+    size_t total = 0u;
+    for (size_t i = 0u; i < N_MAX; ++i) {
+        if (g_truth[i] == (uint8_t)neuron) {
+            votes[g_out.labels[i]]++;
+            total++;
+        }
+    }
+    size_t best = 0u;
+    for (size_t g = 1u; g <= g_out.g; ++g) {
+        best = (votes[g] > votes[best]) ? g : best;
+    }
+    if ((total == 0u) || (best == 0u)) {
+        return -2;
+    }
+    return g_out.cluster_track[best - 1u];
+}
+
+static void start(mhtc_tracker_t tracker, uint64_t seed)
+{
+    mhtc_config_t cfg;
+    mhtc_config_default(&cfg, tracker);
+    cfg.g_max = 3u;
+    cfg.q_process = 0.05;
+    cfg.init_var = 0.1;
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_init(&g_st, &cfg));
+    md_rng_seed(&g_rng, seed);
+    g_n = 0u;
+}
+
+/* Runs one interval with the given neurons present; keeps truth labels for id_of(). */
+static void add_outliers(size_t count)
+{
+    for (size_t k = 0u; (k < count) && (g_n < N_MAX); ++k, ++g_n) {
+        for (size_t i = 0u; i < DW; ++i) {
+            g_wave[g_n][i] = 6.0 * md_rng_gauss(&g_rng);
+        }
+        g_truth[g_n] = 0u;
+    }
+}
+
+static void interval_with(bool a, bool b, bool c)
+{
+    memset(g_truth, 0, sizeof g_truth);
+    add_outliers(4u);
+    if (a) {
+        add_spikes(1, 60u);
+    }
+    if (b) {
+        add_spikes(2, 50u);
+    }
+    if (c) {
+        add_spikes(3, 50u);
+    }
+    TEST_ASSERT_EQUAL_INT(MD_OK, run_interval());
+}
+
+static void test_silent_neuron_keeps_id(void)
+{
+    start(MHTC_TRACKER_MHTC, 1u);
+    int32_t id_a = -2, id_b = -2;
+    for (int k = 0; k < 3; ++k) {
+        interval_with(true, true, false);
+        id_a = id_of(1);
+        id_b = id_of(2);
+    }
+    TEST_ASSERT_TRUE(id_a > 0);
+    TEST_ASSERT_TRUE(id_b > 0);
+    TEST_ASSERT_TRUE(id_a != id_b);
+    for (int k = 0; k < 3; ++k) { /* B silent for 3 intervals (< K_miss = 5) */
+        interval_with(true, false, false);
+        TEST_ASSERT_EQUAL_INT32(id_a, id_of(1));
+    }
+    interval_with(true, true, false);
+    TEST_ASSERT_EQUAL_INT32(id_a, id_of(1));
+    TEST_ASSERT_EQUAL_INT32(id_b, id_of(2));
+}
+
+static void test_new_neuron_new_id_and_delayed_decision(void)
+{
+    start(MHTC_TRACKER_MHTC, 2u);
+    interval_with(true, false, false);
+    interval_with(true, false, false);
+    const int32_t id_a = id_of(1);
+    TEST_ASSERT_TRUE(id_a > 0);
+    interval_with(true, false, true); /* C appears at interval 3 */
+    interval_with(true, false, true);
+    interval_with(true, false, true);
+    const int32_t id_c = id_of(3);
+    TEST_ASSERT_EQUAL_INT32(id_a, id_of(1));
+    TEST_ASSERT_TRUE(id_c > 0);
+    TEST_ASSERT_TRUE(id_c != id_a);
+    /* An unmatched cluster is first ranked false (λφ > λν), so the lineage that started C's
+     * track was not the leading hypothesis when C appeared, two intervals ago (rank history
+     * newest first: index 2 is interval 3). */
+    TEST_ASSERT_TRUE(g_out.hyp_hist_len >= 3u);
+    TEST_ASSERT_GREATER_THAN_UINT(1u, g_out.hyp_rank_hist[0][2]);
+    TEST_ASSERT_EQUAL_UINT(1u, g_out.hyp_rank_hist[0][0]);
+}
+
+static void test_false_cluster_not_a_track(void)
+{
+    start(MHTC_TRACKER_MHTC, 3u);
+    interval_with(true, false, false);
+    interval_with(true, false, false);
+    memset(g_truth, 0, sizeof g_truth);
+    add_spikes(1, 60u);
+    add_transient(14u); /* a one-off tight group */
+    TEST_ASSERT_EQUAL_INT(MD_OK, run_interval());
+    for (int k = 0; k < 4; ++k) {
+        interval_with(true, false, false);
+    }
+    TEST_ASSERT_EQUAL_size_t(1u, g_out.n_tracks); /* only neuron A's track in the leading hypothesis */
+    TEST_ASSERT_EQUAL_UINT32(1u, g_out.track[0].id);
+}
+
+static void test_ids_monotonic_and_pool_shared(void)
+{
+    start(MHTC_TRACKER_MHTC, 4u);
+    for (int k = 0; k < 4; ++k) {
+        interval_with(true, true, false);
+    }
+    /* records are shared: far fewer than L × tracks */
+    size_t live = 0u, refs = 0u;
+    for (size_t r = 0u; r < MHTC_POOL; ++r) {
+        live += (g_st.pool[r].refs > 0u) ? 1u : 0u;
+        refs += g_st.pool[r].refs;
+    }
+    size_t tracks = 0u;
+    for (size_t h = 0u; h < g_st.n_hyp; ++h) {
+        tracks += g_st.hyp[h].n_tracks;
+    }
+    TEST_ASSERT_EQUAL_size_t(tracks, refs);
+    TEST_ASSERT_TRUE(live < tracks);
+    /* probabilities of the survivors are normalised and sorted */
+    double sum = 0.0;
+    for (size_t h = 0u; h < g_out.n_hyp; ++h) {
+        sum += g_out.hyp_prob[h];
+        if (h > 0u) {
+            TEST_ASSERT_TRUE(g_out.hyp_prob[h] <= g_out.hyp_prob[h - 1u]);
+        }
+    }
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1.0, sum);
+    TEST_ASSERT_TRUE(g_st.next_id > 2u);
+    TEST_MESSAGE("pool sharing verified");
+}
+
+static void test_empty_interval_and_bad_input(void)
+{
+    start(MHTC_TRACKER_MHTC, 5u);
+    interval_with(true, false, false);
+    interval_with(true, false, false);
+    const int32_t id_a = id_of(1);
+    /* too few spikes for any model: all tracks missed, not an error */
+    add_spikes(1, 2u);
+    TEST_ASSERT_EQUAL_INT(MD_OK, run_interval());
+    TEST_ASSERT_EQUAL_size_t(0u, g_out.g);
+    TEST_ASSERT_EQUAL_UINT32(1u, g_st.stats.empty_intervals);
+    /* with no cluster at all, hypotheses with fewer tracks lead (P3 = Π(1 - P_d) e^{-λ0}),
+     * but A's track survives, missed once, in another hypothesis */
+    bool kept = false;
+    for (size_t h = 0u; h < g_st.n_hyp; ++h) {
+        for (size_t j = 0u; j < g_st.hyp[h].n_tracks; ++j) {
+            const mhtc_track_t *t = &g_st.pool[g_st.hyp[h].track[j]];
+            kept = kept || ((t->id == (uint32_t)id_a) && (t->misses == 1u));
+        }
+    }
+    TEST_ASSERT_TRUE(kept);
+    interval_with(true, false, false);
+    TEST_ASSERT_EQUAL_INT32(id_a, id_of(1));
+    /* bad input is rejected and counted, state untouched */
+    const uint32_t steps = g_st.stats.steps;
+    mhtc_input_t in = {g_y, 10u, &g_wave[0][0], DW, &g_basis, g_xi, 0.0};
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_step(&g_st, &in, &g_ws, &g_out));
+    in.duration_s = 10.0;
+    g_y[0] = NAN;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_step(&g_st, &in, &g_ws, &g_out));
+    TEST_ASSERT_EQUAL_UINT32(steps, g_st.stats.steps);
+    TEST_ASSERT_EQUAL_UINT32(2u, g_st.stats.step_errors);
+    mhtc_config_t bad;
+    mhtc_config_default(&bad, MHTC_TRACKER_MHTC);
+    bad.L = MHTC_L_MAX + 1u;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_init(&g_st, &bad));
+}
+
+static void test_baselines_run_and_nn_loses_silent_neuron(void)
+{
+    const mhtc_tracker_t t[3] = {MHTC_TRACKER_MAP_NN, MHTC_TRACKER_ML_NN, MHTC_TRACKER_GNN};
+    for (size_t k = 0u; k < 3u; ++k) {
+        start(t[k], 6u);
+        interval_with(true, true, false);
+        interval_with(true, true, false);
+        const int32_t id_a = id_of(1), id_b = id_of(2);
+        TEST_ASSERT_TRUE(id_a > 0);
+        TEST_ASSERT_TRUE(id_b > 0);
+        interval_with(true, false, false);
+        TEST_ASSERT_EQUAL_INT32(id_a, id_of(1));
+        interval_with(true, true, false);
+        TEST_ASSERT_EQUAL_INT32(id_a, id_of(1));
+        if (t[k] != MHTC_TRACKER_GNN) {
+            /* NN baselines keep a track one interval only (thesis §3.4): B comes back as a new ID */
+            TEST_ASSERT_TRUE(id_of(2) != id_b);
+        } else {
+            TEST_ASSERT_EQUAL_INT32(id_b, id_of(2));
+        }
+        TEST_ASSERT_EQUAL_size_t(1u, g_out.n_hyp);
+    }
+}
+
+static void test_tracker_names(void)
+{
+    mhtc_tracker_t t;
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_tracker_parse("ml-nn", &t));
+    TEST_ASSERT_EQUAL_INT(MHTC_TRACKER_ML_NN, t);
+    TEST_ASSERT_EQUAL_STRING("gnn", mhtc_tracker_name(MHTC_TRACKER_GNN));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_tracker_parse("kalman", &t));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_silent_neuron_keeps_id);
+    RUN_TEST(test_new_neuron_new_id_and_delayed_decision);
+    RUN_TEST(test_false_cluster_not_a_track);
+    RUN_TEST(test_ids_monotonic_and_pool_shared);
+    RUN_TEST(test_empty_interval_and_bad_input);
+    RUN_TEST(test_baselines_run_and_nn_loses_silent_neuron);
+    RUN_TEST(test_tracker_names);
+    return UNITY_END();
+}
