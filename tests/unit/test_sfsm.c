@@ -1,0 +1,672 @@
+/* Unit: supervisory finite state machine (thesis §2.2.4, Table 2.1).
+ * Every row of the transition table is driven (the last test checks that each
+ * one fired), every WAIT row is shown not to fire after R-1 qualifying cycles
+ * followed by a break, HALTED and the hold states never request motion, and
+ * no step ever exceeds Δmax or leaves the depth window. */
+#include <math.h>
+#include <string.h>
+
+#include "common/md_rng.h"
+#include "control/sfsm.h"
+#include "unity.h"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+#define TRACK_A 7u
+#define TRACK_B 9u
+
+static sfsm_config_t cfg;
+static sfsm_t sm;
+static sfsm_output_t out;
+static unsigned fired[SFSM_ROWS_MAX];
+
+static bool holds_still(sfsm_state_t s)
+{
+    return (s == SFSM_NEURON_ISOLATED) || (s == SFSM_WINDOW_LIMIT) || (s == SFSM_HALTED);
+}
+
+/* Dominant TRACK_A, SNR 5, IQM 2.5 (Ω1), spikes, depth 1000 in [0, 5000],
+ * a ready cubic-order suggestion stepping +12 µm. */
+static sfsm_input_t base(void)
+{
+    sfsm_input_t in;
+    (void)memset(&in, 0, sizeof in);
+    in.has_dominant = true;
+    in.dominant_track = TRACK_A;
+    in.snr = 5.0;
+    in.iqm = 2.5;
+    in.spikes_seen = true;
+    in.depth_um = 1000.0;
+    in.depth_min_um = 0.0;
+    in.depth_max_um = 5000.0;
+    in.suggestion.ready = true;
+    in.suggestion.m_star = 3u;
+    in.suggestion.step_um = 12.0;
+    in.suggestion.newton_um = 12.0;
+    return in;
+}
+
+static void converged(sfsm_input_t *in)
+{
+    in->suggestion.converged = true;
+    in->suggestion.step_um = 0.0;
+    in->suggestion.newton_um = 1.0;
+}
+
+/* One cycle with the invariants every cycle must keep. */
+static md_status_t cycle(const sfsm_input_t *in)
+{
+    const md_status_t st = sfsm_step(&sm, in, &out);
+    TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(cfg.step_max_um, fabs(out.step_um));
+    if (holds_still(out.state)) {
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    }
+    if (isfinite(in->depth_um) && (in->depth_min_um < in->depth_max_um) && (in->depth_um >= in->depth_min_um) &&
+        (in->depth_um <= in->depth_max_um)) {
+        TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(in->depth_max_um + 1e-9, in->depth_um + out.step_um);
+        TEST_ASSERT_GREATER_OR_EQUAL_DOUBLE(in->depth_min_um - 1e-9, in->depth_um + out.step_um);
+    }
+    if (out.row >= 0) {
+        fired[out.row]++;
+    }
+    return st;
+}
+
+static void run(const sfsm_input_t *in, unsigned n)
+{
+    for (unsigned i = 0u; i < n; ++i) {
+        TEST_ASSERT_EQUAL_INT(MD_OK, cycle(in));
+    }
+}
+
+static void start(void)
+{
+    sfsm_config_default(&cfg);
+    TEST_ASSERT_EQUAL_INT(MD_OK, sfsm_init(&sm, &cfg));
+}
+
+static void to_gradient_search(void)
+{
+    start();
+    const sfsm_input_t in = base();
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
+}
+
+static void to_isolate(void)
+{
+    to_gradient_search();
+    const sfsm_input_t in = base();
+    run(&in, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_ISOLATE_NEURON, out.state);
+}
+
+/* Isolated on TRACK_A with reference SNR 8. */
+static void to_isolated(void)
+{
+    to_isolate();
+    sfsm_input_t in = base();
+    converged(&in);
+    in.iqm = 3.5;
+    in.snr = 8.0;
+    run(&in, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 8.0, sm.ref_snr);
+}
+
+static void to_reestimate(void)
+{
+    to_isolated();
+    sfsm_input_t in = base();
+    in.snr = 6.0;
+    in.suggestion.ready = false;
+    run(&in, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
+}
+
+static void to_reisolate(void)
+{
+    to_reestimate();
+    sfsm_input_t in = base();
+    in.snr = 6.0;
+    run(&in, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_REISOLATE_NEURON, out.state);
+}
+
+static void test_config_defaults_and_checks(void)
+{
+    start();
+    TEST_ASSERT_EQUAL_INT(MD_OK, sfsm_config_check(&cfg));
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, sm.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.85, cfg.snr_drop_frac);
+    sfsm_config_t bad = cfg;
+    bad.gamma2 = bad.gamma3;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad = cfg;
+    bad.step_search_um = cfg.step_max_um + 1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad = cfg;
+    bad.wait_r = 0u;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad = cfg;
+    bad.wait_r = SFSM_R_MAX + 1u;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad = cfg;
+    bad.snr_drop_frac = 1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad = cfg;
+    bad.initial_dir = 0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_init(&sm, &bad));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_init(NULL, &cfg));
+    sfsm_input_t in = base();
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_step(&sm, NULL, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_step(&sm, &in, NULL));
+}
+
+static void test_spike_search_steps_then_finds_spikes(void)
+{
+    start();
+    sfsm_input_t in = base();
+    in.has_dominant = false;
+    in.spikes_seen = false;
+    run(&in, 4u);
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.step_um);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_SEARCH, out.reason);
+    in.spikes_seen = true; /* spikes but no dominant track: keep searching */
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+    in = base(); /* no WAIT: moving on by Δsearch while waiting would overshoot */
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 10.0, out.step_um);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_SAMPLE, out.reason);
+}
+
+/* GS → IN needs R consecutive viable cycles; R-1 then a break does nothing. */
+static void test_gradient_search_waits_r_cycles(void)
+{
+    to_gradient_search();
+    sfsm_input_t viable = base();
+    sfsm_input_t flat = base();
+    flat.suggestion.m_star = 1u;
+    sfsm_input_t poor = base();
+    poor.iqm = 1.5; /* Ω0 */
+    run(&viable, cfg.wait_r - 1u);
+    run(&flat, 1u);
+    run(&viable, cfg.wait_r - 1u);
+    run(&poor, 1u);
+    run(&viable, cfg.wait_r - 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 10.0, out.step_um);
+    run(&viable, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_ISOLATE_NEURON, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 12.0, out.step_um); /* the optimiser's step at once */
+    TEST_ASSERT_EQUAL_INT(SFSM_R_NEWTON, out.reason);
+}
+
+static void test_isolate_follows_the_optimiser(void)
+{
+    to_isolate();
+    sfsm_input_t in = base();
+    in.suggestion.m_star = 2u;
+    in.suggestion.step_um = -30.0;
+    run(&in, 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -30.0, out.step_um);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_LINE, out.reason);
+    in.suggestion.m_star = 1u;
+    in.suggestion.step_um = 10.0;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_FLAT, out.reason);
+    in.suggestion.m_star = 3u;
+    in.suggestion.step_um = 80.0; /* a misbehaving optimiser is still capped */
+    run(&in, 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.step_max_um, out.step_um);
+    TEST_ASSERT_TRUE(out.clamped);
+    converged(&in); /* converged but only Ω1: hold, no isolation */
+    run(&in, 2u * cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_ISOLATE_NEURON, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_CONVERGED_HOLD, out.reason);
+    in.iqm = 1.0; /* Ω0 for R-1 cycles: hold, do not follow the gradient */
+    in.suggestion = base().suggestion;
+    run(&in, cfg.wait_r - 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_LOW_IQM_HOLD, out.reason);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+}
+
+static void test_isolate_declares_after_r_converged_cycles(void)
+{
+    to_isolate();
+    sfsm_input_t in = base();
+    converged(&in);
+    in.iqm = 3.5; /* Ω2 */
+    sfsm_input_t moving = base();
+    moving.iqm = 3.5;
+    in.snr = 7.0;
+    run(&in, cfg.wait_r - 1u);
+    run(&moving, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_ISOLATE_NEURON, out.state);
+    in.snr = 9.0;
+    run(&in, cfg.wait_r - 1u);
+    in.snr = 12.0;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    TEST_ASSERT_TRUE(sm.has_ref);
+    TEST_ASSERT_EQUAL_UINT32(TRACK_A, sm.ref_track);
+    /* reference = mean SNR of the last R cycles of the track (9, 9, 12) */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 10.0, sm.ref_snr);
+}
+
+static void test_isolate_falls_back_to_gradient_search(void)
+{
+    to_isolate();
+    sfsm_input_t low = base();
+    low.iqm = 1.0;
+    run(&low, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
+    to_isolate();
+    sfsm_input_t young = base(); /* the dominant track's curve is new: no WAIT */
+    young.suggestion.ready = false;
+    young.suggestion.m_star = 0u;
+    run(&young, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
+}
+
+/* Neuron Isolated: hold; leave below 85 % of the isolation SNR for R cycles. */
+static void test_isolated_snr_drop_rule(void)
+{
+    to_isolated();
+    sfsm_input_t in = base();
+    in.snr = 0.86 * 8.0;
+    run(&in, 3u * cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_ISOLATED_HOLD, out.reason);
+    in.snr = 0.84 * 8.0;
+    run(&in, cfg.wait_r - 1u);
+    in.snr = 7.0;
+    run(&in, 1u);
+    in.snr = 0.84 * 8.0;
+    run(&in, cfg.wait_r - 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_FALSE(out.reset_curve);
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
+    TEST_ASSERT_TRUE(out.reset_curve); /* entry: restart the drifted neuron's curve */
+    TEST_ASSERT_EQUAL_UINT32(TRACK_A, out.reset_track);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -5.0, out.step_um); /* retract by Δresample */
+    TEST_ASSERT_EQUAL_INT(SFSM_R_RETRACT, out.reason);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 8.0, sm.ref_snr);
+}
+
+static void test_reestimate_to_reisolate_and_back(void)
+{
+    to_reestimate();
+    sfsm_input_t in = base();
+    in.snr = 6.0;
+    in.suggestion.ready = false;
+    run(&in, 5u);
+    TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -5.0, out.step_um);
+    in = base();
+    in.snr = 6.0;
+    run(&in, cfg.wait_r - 1u);
+    in.suggestion.m_star = 1u;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
+    in.suggestion.m_star = 2u;
+    in.suggestion.step_um = -30.0;
+    run(&in, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_REISOLATE_NEURON, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -30.0, out.step_um);
+    in.snr = 7.99;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_REISOLATE_NEURON, out.state);
+    in.snr = 8.0; /* back at the isolation SNR: restored at once, reference kept */
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 8.0, sm.ref_snr);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    to_reestimate(); /* also straight from Re-Estimate Gradient */
+    in = base();
+    in.snr = 8.5;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 8.0, sm.ref_snr);
+}
+
+static void test_reisolate_exits(void)
+{
+    to_reisolate();
+    sfsm_input_t in = base();
+    in.snr = 6.5;
+    in.iqm = 3.5;
+    converged(&in);
+    run(&in, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 6.5, sm.ref_snr); /* a new isolation, a new reference */
+    to_reisolate();
+    in = base();
+    in.snr = 6.0;
+    in.iqm = 1.0;
+    run(&in, cfg.wait_r - 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_REISOLATE_NEURON, out.state);
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
+    to_reisolate();
+    in = base();
+    in.snr = 6.0;
+    in.suggestion.ready = false;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
+}
+
+/* Another neuron dominant for R cycles while isolated: optimise that one. */
+static void test_other_dominant_restarts_gradient_search(void)
+{
+    void (*const reach[3])(void) = {to_isolated, to_reestimate, to_reisolate};
+    for (size_t k = 0u; k < 3u; ++k) {
+        reach[k]();
+        const sfsm_state_t here = sm.state;
+        sfsm_input_t other = base();
+        other.dominant_track = TRACK_B;
+        sfsm_input_t mine = base();
+        mine.snr = 6.0;
+        run(&other, cfg.wait_r - 1u);
+        if (here != SFSM_NEURON_ISOLATED) {
+            TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um); /* not our neuron: hold */
+        }
+        run(&mine, 1u);
+        TEST_ASSERT_EQUAL_INT(here, out.state);
+        run(&other, cfg.wait_r);
+        TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
+        TEST_ASSERT_FALSE(sm.has_ref);
+    }
+}
+
+/* Ω3 (IQM >= γ3) → Neuron Isolated at once, from every running state. */
+static void test_omega3_isolates_from_any_state(void)
+{
+    void (*const reach[5])(void) = {start, to_gradient_search, to_isolate, to_reestimate, to_reisolate};
+    for (size_t k = 0u; k < 5u; ++k) {
+        reach[k]();
+        sfsm_input_t in = base();
+        in.iqm = 5.0;
+        in.snr = 4.0;
+        in.dominant_track = TRACK_B;
+        run(&in, 1u);
+        TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+        TEST_ASSERT_EQUAL_UINT32(TRACK_B, sm.ref_track);
+    }
+    /* from Window Limit too */
+    start();
+    sfsm_input_t edge = base();
+    edge.has_dominant = false;
+    edge.depth_um = 5000.0;
+    run(&edge, 1u);
+    edge.depth_um = 0.0;
+    run(&edge, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_WINDOW_LIMIT, out.state);
+    sfsm_input_t in = base();
+    in.iqm = 6.0;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    /* isolated on A; B appears with Ω3: isolate B instead */
+    to_isolated();
+    in = base();
+    in.iqm = 2.0;
+    in.dominant_track = TRACK_B;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_UINT32(TRACK_A, sm.ref_track);
+    in.iqm = 5.5;
+    in.snr = 11.0;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_EQUAL_UINT32(TRACK_B, sm.ref_track);
+    TEST_ASSERT_GREATER_OR_EQUAL_INT(0, out.row);
+}
+
+/* No dominant track for lost_cycles cycles → Spike Search; one fewer, then a
+ * track again, → stay. The electrode holds while the neuron is missing. */
+static void test_losing_all_spikes(void)
+{
+    void (*const reach[5])(void) = {to_gradient_search, to_isolate, to_isolated, to_reestimate, to_reisolate};
+    for (size_t k = 0u; k < 5u; ++k) {
+        reach[k]();
+        const sfsm_state_t here = sm.state;
+        sfsm_input_t none = base();
+        none.has_dominant = false;
+        none.spikes_seen = false;
+        sfsm_input_t back = base();
+        back.snr = 6.0;
+        back.suggestion.m_star = 1u;
+        run(&none, cfg.lost_cycles - 1u);
+        TEST_ASSERT_EQUAL_INT(here, out.state);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+        TEST_ASSERT_EQUAL_INT((here == SFSM_NEURON_ISOLATED) ? SFSM_R_ISOLATED_HOLD : SFSM_R_NO_DOMINANT_HOLD,
+                              out.reason);
+        run(&back, 1u);
+        TEST_ASSERT_EQUAL_INT(here, out.state);
+        run(&none, cfg.lost_cycles);
+        TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.step_um);
+        TEST_ASSERT_FALSE(sm.has_ref);
+    }
+}
+
+static void test_window_edges(void)
+{
+    start();
+    sfsm_input_t in = base();
+    in.has_dominant = false;
+    in.depth_um = 4990.0; /* Δsearch shortened to the edge */
+    run(&in, 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 10.0, out.step_um);
+    TEST_ASSERT_TRUE(out.clamped);
+    in.depth_um = 5000.0; /* at the deep edge: reverse the search */
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+    TEST_ASSERT_EQUAL_INT(-1, sm.search_dir);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -20.0, out.step_um);
+    in.depth_um = 0.0; /* the other edge too: stop and wait for the operator */
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_WINDOW_LIMIT, out.state);
+    run(&in, 4u);
+    TEST_ASSERT_EQUAL_INT(SFSM_WINDOW_LIMIT, out.state);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_WINDOW_HOLD, out.reason);
+    in.resume = true;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+    TEST_ASSERT_EQUAL_INT(1, sm.search_dir);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.step_um);
+    /* Gradient Search at the edge: back to Spike Search, reversed */
+    to_gradient_search();
+    in = base();
+    in.depth_um = 5000.0;
+    in.suggestion.m_star = 1u;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+    TEST_ASSERT_EQUAL_INT(-1, sm.search_dir);
+    /* Isolate Neuron pushing out of the window: with IQM >= γ2 the edge is the
+     * best reachable position (declare), below γ2 stop and wait */
+    to_isolate();
+    in = base();
+    in.depth_um = 5000.0;
+    in.iqm = 3.2;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    to_isolate();
+    in.iqm = 2.5;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_WINDOW_LIMIT, out.state);
+    /* Re-Estimate retracting into the shallow edge */
+    to_reestimate();
+    in = base();
+    in.snr = 6.0;
+    in.depth_um = 0.2;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_WINDOW_LIMIT, out.state);
+    /* Outside the window (operator narrowed it): outward steps become zero */
+    start();
+    in = base();
+    in.has_dominant = false;
+    in.depth_um = 6000.0;
+    in.depth_min_um = 0.0;
+    in.depth_max_um = 5000.0;
+    run(&in, 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -20.0, out.step_um); /* reversed, moving back in */
+}
+
+/* E-stop or fault → HALTED from every state; nothing moves until resume. */
+static void test_halt_and_resume(void)
+{
+    void (*const reach[6])(void) = {start, to_gradient_search, to_isolate, to_isolated, to_reestimate, to_reisolate};
+    for (size_t k = 0u; k < 6u; ++k) {
+        reach[k]();
+        sfsm_input_t in = base();
+        in.estop = (k % 2u) == 0u;
+        in.fault = !in.estop;
+        run(&in, 1u);
+        TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+        TEST_ASSERT_EQUAL_INT(SFSM_R_HALTED, out.reason);
+    }
+    /* resume is refused while the cause persists */
+    sfsm_input_t in = base();
+    in.fault = true;
+    in.resume = true;
+    run(&in, 3u);
+    TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
+    in.fault = false;
+    in.resume = false;
+    in.iqm = 9.0; /* even Ω3 does not leave HALTED */
+    run(&in, 3u);
+    TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
+    in.resume = true;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state); /* resumed: one row per cycle */
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.step_um);
+    in.resume = false;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state); /* then Ω3 */
+}
+
+/* Random inputs for many cycles in HALTED without resume: never a step. */
+static void test_no_motion_while_halted(void)
+{
+    start();
+    sfsm_input_t in = base();
+    in.estop = true;
+    run(&in, 1u);
+    md_rng_t rng;
+    md_rng_seed(&rng, 3u);
+    for (unsigned i = 0u; i < 500u; ++i) {
+        in = base();
+        in.has_dominant = md_rng_uniform(&rng) < 0.8;
+        in.dominant_track = md_rng_below(&rng, 3u);
+        in.snr = 20.0 * md_rng_uniform(&rng);
+        in.iqm = 8.0 * md_rng_uniform(&rng);
+        in.spikes_seen = md_rng_uniform(&rng) < 0.5;
+        in.estop = md_rng_uniform(&rng) < 0.5;
+        in.fault = md_rng_uniform(&rng) < 0.5;
+        in.suggestion.converged = md_rng_uniform(&rng) < 0.3;
+        in.suggestion.step_um = 60.0 * md_rng_uniform(&rng) - 30.0;
+        (void)cycle(&in);
+        TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    }
+}
+
+static void test_invalid_input_halts_and_is_counted(void)
+{
+    to_isolate();
+    sfsm_input_t in = base();
+    in.depth_um = NAN;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, cycle(&in));
+    TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_BAD_INPUT, out.reason);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    in = base();
+    in.snr = INFINITY;
+    in.resume = true;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, cycle(&in));
+    in = base();
+    in.depth_min_um = 6000.0;
+    in.resume = true;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, cycle(&in));
+    in = base();
+    in.suggestion.step_um = NAN;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, cycle(&in));
+    TEST_ASSERT_EQUAL_UINT32(4u, sm.bad_inputs);
+    TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
+    in = base();
+    in.resume = true;
+    TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&in));
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+}
+
+/* Random plausible inputs over long runs: every step within ±Δmax and inside
+ * the window; zero in the hold states (checked in cycle()). */
+static void test_steps_bounded_under_random_inputs(void)
+{
+    md_rng_t rng;
+    md_rng_seed(&rng, 99u);
+    for (unsigned run_i = 0u; run_i < 20u; ++run_i) {
+        start();
+        double depth = 2500.0;
+        for (unsigned k = 0u; k < 300u; ++k) {
+            sfsm_input_t in = base();
+            in.depth_um = depth;
+            in.has_dominant = md_rng_uniform(&rng) < 0.85;
+            in.dominant_track = 1u + md_rng_below(&rng, 2u);
+            in.snr = 2.0 + 10.0 * md_rng_uniform(&rng);
+            in.iqm = 6.0 * md_rng_uniform(&rng);
+            in.spikes_seen = md_rng_uniform(&rng) < 0.7;
+            in.suggestion.ready = md_rng_uniform(&rng) < 0.8;
+            in.suggestion.m_star = (uint8_t)(1u + md_rng_below(&rng, 4u));
+            in.suggestion.converged = md_rng_uniform(&rng) < 0.2;
+            in.suggestion.step_um = 200.0 * md_rng_uniform(&rng) - 100.0;
+            in.estop = md_rng_uniform(&rng) < 0.01;
+            in.resume = md_rng_uniform(&rng) < 0.05;
+            TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&in));
+            depth += out.step_um;
+        }
+    }
+}
+
+/* Runs last: every row of the table fired somewhere above. */
+static void test_every_row_was_exercised(void)
+{
+    size_t n = 0u;
+    (void)sfsm_table(&n);
+    for (size_t i = 0u; i < n; ++i) {
+        TEST_ASSERT_MESSAGE(fired[i] > 0u, "a transition-table row never fired");
+    }
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_config_defaults_and_checks);
+    RUN_TEST(test_spike_search_steps_then_finds_spikes);
+    RUN_TEST(test_gradient_search_waits_r_cycles);
+    RUN_TEST(test_isolate_follows_the_optimiser);
+    RUN_TEST(test_isolate_declares_after_r_converged_cycles);
+    RUN_TEST(test_isolate_falls_back_to_gradient_search);
+    RUN_TEST(test_isolated_snr_drop_rule);
+    RUN_TEST(test_reestimate_to_reisolate_and_back);
+    RUN_TEST(test_reisolate_exits);
+    RUN_TEST(test_other_dominant_restarts_gradient_search);
+    RUN_TEST(test_omega3_isolates_from_any_state);
+    RUN_TEST(test_losing_all_spikes);
+    RUN_TEST(test_window_edges);
+    RUN_TEST(test_halt_and_resume);
+    RUN_TEST(test_no_motion_while_halted);
+    RUN_TEST(test_invalid_input_halts_and_is_counted);
+    RUN_TEST(test_steps_bounded_under_random_inputs);
+    RUN_TEST(test_every_row_was_exercised);
+    return UNITY_END();
+}
