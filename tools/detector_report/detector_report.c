@@ -36,6 +36,9 @@ typedef struct {
     double k_sigma;
     double cost_l;
     int dog1;
+    unsigned scales;
+    int refine;
+    double warmup_ms;
 } opts_t;
 
 typedef struct {
@@ -69,6 +72,12 @@ static int parse(int argc, char **argv, opts_t *o)
             o->k_sigma = atof(v);
         } else if (strcmp(a, "--l") == 0) {
             o->cost_l = atof(v);
+        } else if (strcmp(a, "--scales") == 0) {
+            o->scales = (unsigned)atoi(v);
+        } else if (strcmp(a, "--refine") == 0) {
+            o->refine = atoi(v);
+        } else if (strcmp(a, "--warmup-ms") == 0) {
+            o->warmup_ms = atof(v);
         } else if (strcmp(a, "--wavelet") == 0) {
             o->dog1 = (strcmp(v, "dog1") == 0);
         } else {
@@ -94,6 +103,9 @@ static void run_one(const opts_t *o, sd_method_t method, double snr, uint64_t se
     cfg.k_sigma = o->k_sigma;
     cfg.cost_ratio_l = o->cost_l;
     cfg.wavelet = o->dog1 ? SD_WAVELET_DOG1 : SD_WAVELET_MEXHAT;
+    cfg.n_scales = o->scales;
+    cfg.refine = (o->refine != 0);
+    cfg.warmup_ms = o->warmup_ms;
     if (sd_init(&g_det, &cfg, g_interval, MAX_SAMPLES) != MD_OK) {
         t->failures++;
         return;
@@ -119,7 +131,8 @@ int main(int argc, char **argv)
 {
     sd_config_t defaults;
     sd_config_default(&defaults, SD_METHOD_WAVELET, 20000u);
-    opts_t o = {10.0, 5u, 20.0, 20000u, 0, 2.0, 8.0, defaults.k_sigma, defaults.cost_ratio_l, 0};
+    opts_t o = {10.0, 5u, 20.0, 20000u, 0, 2.0, 8.0, defaults.k_sigma, defaults.cost_ratio_l, 0,
+                defaults.n_scales, defaults.refine ? 1 : 0, defaults.warmup_ms};
     if (parse(argc, argv, &o) != 0) {
         fprintf(stderr, "usage: %s [--seconds S] [--seeds N] [--rate-hz R] [--fs HZ] [--noise white|band] "
                         "[--snr-min A] [--snr-max B] [--k K] [--l L] [--wavelet mexhat|dog1]\n", argv[0]);

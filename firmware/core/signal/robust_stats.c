@@ -10,9 +10,14 @@ static uint32_t rs_absdiff(int16_t v, int32_t offset)
     return (uint32_t)((d < 0) ? -d : d);
 }
 
-/* Finds the bin holding 0-based rank k; *before = count in lower bins. */
-static size_t rs_find_bin(const uint32_t *bins, size_t n_bins, uint64_t k, uint64_t *before)
+size_t rs_rank_bin(const uint32_t *bins, size_t n_bins, uint64_t k, uint64_t *before)
 {
+    uint64_t dummy = 0u;
+    before = (before != NULL) ? before : &dummy;
+    if ((bins == NULL) || (n_bins == 0u)) {
+        *before = 0u;
+        return 0u;
+    }
     uint64_t cum = 0u;
     for (size_t b = 0u; b < n_bins; ++b) {
         if (k < cum + bins[b]) {
@@ -37,7 +42,7 @@ uint32_t rs_abs_kth_i16(const int16_t *x, size_t n, int32_t offset, size_t k, rs
         work->bins[rs_absdiff(x[i], offset) >> 8u]++;
     }
     uint64_t before = 0u;
-    const size_t coarse = rs_find_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k, &before);
+    const size_t coarse = rs_rank_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k, &before);
     memset(work->bins, 0, sizeof work->bins);
     for (size_t i = 0u; i < n; ++i) {
         const uint32_t v = rs_absdiff(x[i], offset);
@@ -46,7 +51,7 @@ uint32_t rs_abs_kth_i16(const int16_t *x, size_t n, int32_t offset, size_t k, rs
         }
     }
     uint64_t before_fine = 0u;
-    const size_t fine = rs_find_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k - before, &before_fine);
+    const size_t fine = rs_rank_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k - before, &before_fine);
     return (uint32_t)((coarse << 8u) | fine);
 }
 
@@ -69,7 +74,7 @@ double rs_hist_rank_value(const uint32_t *hist, size_t bins, double bin_width, u
         return 0.0;
     }
     uint64_t before = 0u;
-    const size_t b = rs_find_bin(hist, bins, k, &before);
+    const size_t b = rs_rank_bin(hist, bins, k, &before);
     if (hist[b] == 0u) {
         return (double)bins * bin_width; /* total exceeded the histogram's counts */
     }

@@ -31,6 +31,11 @@ uint32_t rs_abs_kth_i16(const int16_t *x, size_t n, int32_t offset, size_t k, rs
 /// Up to four passes over x: O(n).
 double rs_abs_median_i16(const int16_t *x, size_t n, int32_t offset, rs_hist_t *work);
 
+/// Bin holding 0-based rank k of a histogram (the last bin if k exceeds
+/// the counts); *before receives the count of the lower bins. Building block
+/// of exact selection by successive histogram levels. O(bins).
+size_t rs_rank_bin(const uint32_t *bins, size_t n_bins, uint64_t k, uint64_t *before);
+
 /// Value of 0-based rank k among the `total` values counted in a histogram
 /// whose bin b covers [b*bin_width, (b+1)*bin_width). Values are assumed
 /// spread evenly inside a bin, so the error is below one bin width.

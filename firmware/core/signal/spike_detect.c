@@ -5,16 +5,26 @@
 #include <math.h>
 #include <string.h>
 
-#define SD_STATE_IDLE 0
-#define SD_STATE_STREAMING 1
-#define SD_STATE_DONE 2
+#define SD_PHASE_IDLE 0
+#define SD_PHASE_WARMUP 1
+#define SD_PHASE_REPLAY 2
+#define SD_PHASE_RUN 3
+#define SD_PHASE_ENDED 4  /* input ended, replay (if any) pending or done */
+#define SD_PHASE_DONE 5
 
 #define SD_MAD_TO_SIGMA 0.6745  /* median(|N(0,1)|): robust sigma = MAD / 0.6745 */
-#define SD_TRUNC_SIGMAS 4.0     /* wavelet support kept: +-4 envelope widths (envelope < 4e-4) */
 /* Nenadic & Burdick's reference code scales the user's L in [-0.2, 0.2] by
  * ln of the largest cost ratio double precision can express (about 36.74), so
  * L = +-0.2 moves ln(cost ratio) by about +-7.3. */
 #define SD_L_SCALE 36.7368
+/* Box width of a scale tuned to spike width W: the second difference of a
+ * linear B-spline of box w correlates best (>= 0.98) with a Mexican hat of
+ * envelope 1.6 w / ... i.e. w = 1.6 * (W / 4) * fs = 0.4 W fs. */
+#define SD_BOX_PER_WIDTH 0.4
+#define SD_NONE 0xFFFFFFFFu
+
+#define SD_RING_MASK (SD_RING_SAMPLES - 1u)
+#define SD_P2_MASK (SD_P2_RING - 1u)
 
 void sd_config_default(sd_config_t *cfg, sd_method_t method, uint32_t sample_rate_hz)
 {
@@ -30,8 +40,11 @@ void sd_config_default(sd_config_t *cfg, sd_method_t method, uint32_t sample_rat
     cfg->wavelet = SD_WAVELET_MEXHAT;
     cfg->width_min_ms = 0.5;
     cfg->width_max_ms = 1.0;
-    cfg->n_scales = 4u;
+    cfg->n_scales = 2u;
     cfg->cost_ratio_l = 0.05;
+    cfg->warmup_ms = 250.0;
+    cfg->interval_s = 10.0;
+    cfg->refine = true;
 }
 
 static int sd_in(double v, double lo, double hi)
@@ -41,8 +54,10 @@ static int sd_in(double v, double lo, double hi)
 
 static int sd_config_valid(const sd_config_t *c)
 {
+    const double warm = c->warmup_ms * 1e-3 * (double)c->sample_rate_hz;
     const int common = (c->sample_rate_hz >= 1000u) && (c->sample_rate_hz <= 200000u) &&
-                       sd_in(c->align_ms, 0.01, 5.0);
+                       sd_in(c->align_ms, 0.01, 5.0) && sd_in(c->warmup_ms, 5.0, 1e6) &&
+                       (warm <= (double)SD_WARMUP_MAX) && sd_in(c->interval_s, 0.01, 3600.0);
     switch (c->method) {
     case SD_METHOD_THRESHOLD:
         return common && sd_in(c->k_sigma, 1.0, 20.0) && sd_in(c->dead_time_ms, 0.0, 10.0) &&
@@ -65,90 +80,792 @@ static double sd_scale_width_ms(const sd_config_t *c, unsigned s)
     return c->width_min_ms + (c->width_max_ms - c->width_min_ms) * (double)s / (double)(c->n_scales - 1u);
 }
 
-/* Scale s of the bank: a spike of total width W has its main (negative) phase
- * over about W/2, which is the central lobe (2 s_env) of the Mexican hat, so
- * s_env = W/4. The filter is made exactly zero-mean (a DC offset gives no
- * response) and unit-L2 (its coefficient sigma equals the white-noise sigma). */
-static md_status_t sd_build_filter(sd_detector_t *det, unsigned s)
-{
-    const double env = sd_scale_width_ms(&det->cfg, s) * 1e-3 * (double)det->cfg.sample_rate_hz / 4.0;
-    const double half_d = ceil(SD_TRUNC_SIGMAS * env);
-    if (!(env >= 0.5) || (2.0 * half_d + 1.0 > (double)SD_TAPS_MAX)) {
-        return MD_E_ARG;
-    }
-    const size_t half = (size_t)half_d;
-    const size_t taps = 2u * half + 1u;
-    double *h = det->taps[s];
-    double mean = 0.0;
-    for (size_t j = 0u; j < taps; ++j) {
-        const double u = ((double)j - (double)half) / env;
-        const double g = exp(-0.5 * u * u);
-        h[j] = (det->cfg.wavelet == SD_WAVELET_MEXHAT) ? (1.0 - u * u) * g : -u * g;
-        mean += h[j];
-    }
-    mean /= (double)taps;
-    double norm2 = 0.0;
-    for (size_t j = 0u; j < taps; ++j) {
-        h[j] -= mean;
-        norm2 += h[j] * h[j];
-    }
-    const double inv = 1.0 / sqrt(norm2);
-    for (size_t j = 0u; j < taps; ++j) {
-        h[j] *= inv;
-    }
-    det->half[s] = half;
-    if (half > det->half_max) {
-        det->half_max = half;
-    }
-    return MD_OK;
-}
-
 static uint32_t sd_ms_to_samples(double ms, uint32_t rate_hz)
 {
     return (uint32_t)lround(ms * 1e-3 * (double)rate_hz);
 }
 
-md_status_t sd_init(sd_detector_t *det, const sd_config_t *cfg, int16_t *buf, size_t cap)
+/* Scale s: box width w, kernel = linear B-spline (box * box, support 2w-1)
+ * convolved with a second (MEXHAT) or first (DOG1) difference at step w.
+ * Computed as the 4th (3rd) w-difference of the second running sum P2, so the
+ * kernel is exactly zero-mean and the arithmetic exact in 32 bits. Its L2 norm
+ * turns integer coefficients into unit-L2 units for reporting. */
+static md_status_t sd_build_scale(sd_stream_t *st, unsigned s, uint32_t *delay, uint32_t *first_valid)
 {
-    if ((det == NULL) || (cfg == NULL) || (buf == NULL) || (cap == 0u) || (cap > SD_MAX_INTERVAL_SAMPLES) ||
-        !sd_config_valid(cfg)) {
+    const double w_d = round(SD_BOX_PER_WIDTH * sd_scale_width_ms(&st->cfg, s) * 1e-3 * (double)st->cfg.sample_rate_hz);
+    if (!(w_d >= 2.0) || (w_d > (double)SD_BOX_MAX)) {
         return MD_E_ARG;
     }
-    memset(det, 0, sizeof *det);
-    det->cfg = *cfg;
-    det->buf = buf;
-    det->cap = cap;
-    det->dead_samples = sd_ms_to_samples(cfg->dead_time_ms, cfg->sample_rate_hz);
-    det->align_samples = sd_ms_to_samples(cfg->align_ms, cfg->sample_rate_hz);
-    if (det->align_samples == 0u) {
-        det->align_samples = 1u;
+    const uint32_t w = (uint32_t)w_d;
+    const int mexhat = (st->cfg.wavelet == SD_WAVELET_MEXHAT);
+    const uint32_t support = (mexhat ? 4u : 3u) * w - 1u;
+    double norm2 = 0.0;
+    for (uint32_t j = 0u; j < support; ++j) { /* kernel value at lag j: sum of shifted triangles */
+        double k = 0.0;
+        for (uint32_t d = 0u; d < (mexhat ? 3u : 2u); ++d) {
+            const double wt = mexhat ? ((d == 1u) ? -2.0 : 1.0) : ((d == 1u) ? -1.0 : 1.0);
+            const int64_t u = (int64_t)j - (int64_t)(d * w); /* triangle index 0..2w-2, peak w at w-1 */
+            if ((u >= 0) && (u <= (int64_t)(2u * w - 2u))) {
+                k += wt * (double)((u < (int64_t)w) ? (u + 1) : ((int64_t)(2u * w) - 1 - u));
+            }
+        }
+        norm2 += k * k;
     }
-    if (cfg->method == SD_METHOD_WAVELET) {
+    st->box[s] = w;
+    st->knorm[s] = sqrt(norm2);
+    *delay = (support - 1u) / 2u;
+    *first_valid = (support - 1u) - *delay; /* centre index of the first full kernel */
+    return MD_OK;
+}
+
+static md_status_t sd_setup(sd_stream_t *st)
+{
+    const sd_config_t *c = &st->cfg;
+    const uint32_t align = sd_ms_to_samples(c->align_ms, c->sample_rate_hz);
+    st->after = (align == 0u) ? 1u : align;
+    st->warm_target = sd_ms_to_samples(c->warmup_ms, c->sample_rate_hz);
+    if ((st->after > SD_ALIGN_MAX) || (st->warm_target < 16u)) {
+        return MD_E_ARG;
+    }
+    if (c->method == SD_METHOD_THRESHOLD) {
+        st->before = (c->polarity == SD_POLARITY_BOTH) ? st->after : 0u;
+        st->dedupe = sd_ms_to_samples(c->dead_time_ms, c->sample_rate_hz);
+        st->dmax = 0u;
+    } else {
         /* events closer than the mean expected width are one spike */
-        det->merge_samples =
-            sd_ms_to_samples(0.5 * (cfg->width_min_ms + cfg->width_max_ms), cfg->sample_rate_hz);
-        for (unsigned s = 0u; s < cfg->n_scales; ++s) {
-            const md_status_t st = sd_build_filter(det, s);
-            if (st < 0) {
-                return st;
+        st->before = st->after;
+        st->merge = sd_ms_to_samples(0.5 * (c->width_min_ms + c->width_max_ms), c->sample_rate_hz);
+        st->dedupe = st->merge;
+        st->ns = c->n_scales;
+        uint32_t delay[MD_WAVELET_SCALES_MAX];
+        uint32_t first = 0u;
+        for (unsigned s = 0u; s < st->ns; ++s) {
+            uint32_t fv = 0u;
+            const md_status_t r = sd_build_scale(st, s, &delay[s], &fv);
+            if (r < 0) {
+                return r;
+            }
+            st->dmax = (delay[s] > st->dmax) ? delay[s] : st->dmax;
+            first = (fv > first) ? fv : first;
+        }
+        for (unsigned s = 0u; s < st->ns; ++s) {
+            st->lag[s] = st->dmax - delay[s];
+        }
+        st->c_first = first;
+    }
+    /* Longest distance from the newest sample back to a sample still needed:
+     * kernel delay, a capped run and a capped group, alignment, dedupe, one
+     * step. Consumers (extractor) add their own window on top. */
+    const uint64_t lat = (uint64_t)st->dmax + 2u * SD_RUN_MAX + st->merge + st->before + st->after + st->dedupe +
+                         2u * SD_STEP_SAMPLES;
+    return (lat + 256u <= SD_RING_SAMPLES) ? MD_OK : MD_E_ARG;
+}
+
+static void sd_reset(sd_stream_t *st)
+{
+    st->phase = SD_PHASE_WARMUP;
+    st->status = MD_OK;
+    st->warm_n = 0u;
+    st->replay_pos = 0u;
+    st->warm_sum = 0;
+    st->n = 0u;
+    st->above_prev = false;
+    st->n_coefs = 0u;
+    st->p1 = 0u;
+    st->p2 = 0u;
+    st->in_run = false;
+    st->grp_open = false;
+    st->cand_head = 0u;
+    st->cand_count = 0u;
+    st->has_pend = false;
+    st->due = SD_NONE;
+    memset(st->sum_sig, 0, sizeof st->sum_sig);
+    memset(st->hits, 0, sizeof st->hits);
+    memset(st->p2ring, 0, sizeof st->p2ring);
+    memset(&st->ev, 0, sizeof st->ev);
+}
+
+md_status_t sd_stream_init(sd_stream_t *st, const sd_config_t *cfg)
+{
+    if ((st == NULL) || (cfg == NULL) || !sd_config_valid(cfg)) {
+        return MD_E_ARG;
+    }
+    memset(st, 0, sizeof *st);
+    st->cfg = *cfg;
+    const md_status_t r = sd_setup(st);
+    if (r < 0) {
+        st->phase = SD_PHASE_IDLE;
+        return r;
+    }
+    sd_reset(st);
+    return MD_OK;
+}
+
+md_status_t sd_stream_restart(sd_stream_t *st)
+{
+    if ((st == NULL) || (st->phase == SD_PHASE_IDLE)) {
+        return MD_E_STATE;
+    }
+    sd_reset(st);
+    return MD_OK;
+}
+
+bool sd_stream_busy(const sd_stream_t *st)
+{
+    return (st != NULL) && (st->phase == SD_PHASE_REPLAY || st->phase == SD_PHASE_ENDED) &&
+           (st->replay_pos < st->warm_n) && (st->status == MD_OK);
+}
+
+const sd_events_t *sd_stream_events(const sd_stream_t *st)
+{
+    return (st == NULL) ? NULL : &st->ev;
+}
+
+uint32_t sd_stream_processed(const sd_stream_t *st)
+{
+    return (st == NULL) ? 0u : st->n;
+}
+
+sd_view_t sd_stream_view(const sd_stream_t *st)
+{
+    sd_view_t v = {NULL, SD_RING_MASK, 0u, 0u};
+    if (st != NULL) {
+        v.x = st->buf;
+        v.hi = st->n;
+        v.lo = (st->n > SD_RING_SAMPLES) ? (st->n - SD_RING_SAMPLES) : 0u;
+    }
+    return v;
+}
+
+uint32_t sd_view_argmin(const sd_view_t *v, uint32_t lo, uint32_t hi)
+{
+    if ((v == NULL) || (v->hi == 0u)) {
+        return lo;
+    }
+    lo = (lo < v->lo) ? v->lo : lo;
+    hi = (hi >= v->hi) ? (v->hi - 1u) : hi;
+    uint32_t best = lo;
+    for (uint32_t i = lo + 1u; i <= hi; ++i) {
+        if (v->x[i & v->mask] < v->x[best & v->mask]) {
+            best = i;
+        }
+    }
+    return best;
+}
+
+md_status_t sd_stream_copy(const sd_stream_t *st, uint32_t start, size_t len, int16_t *dst)
+{
+    if ((st == NULL) || (dst == NULL)) {
+        return MD_E_ARG;
+    }
+    const sd_view_t v = sd_stream_view(st);
+    if ((start < v.lo) || ((uint64_t)start + len > (uint64_t)v.hi)) {
+        return MD_E_ARG;
+    }
+    for (size_t j = 0u; j < len; ++j) {
+        dst[j] = v.x[(start + (uint32_t)j) & SD_RING_MASK];
+    }
+    return MD_OK;
+}
+
+/* ---- events: alignment, merging, commit -------------------------------- */
+
+static void sd_commit(sd_stream_t *st, uint32_t t)
+{
+    if (st->ev.n >= MD_MAX_SPIKES) {
+        st->ev.n_overflow++;
+        st->ev.flags |= SD_FLAG_OVERFLOW;
+        return;
+    }
+    st->ev.t[st->ev.n] = t;
+    st->ev.n++;
+}
+
+/* Moves a candidate to the minimum of x in [t - before, t + after] (the
+ * thesis aligns spikes by their minimum), then either merges it into the
+ * pending event (closer than `dedupe`; the deeper minimum wins, so a pending
+ * event only ever moves later) or commits the pending one and replaces it. */
+static void sd_emit(sd_stream_t *st, uint32_t t)
+{
+    const sd_view_t v = sd_stream_view(st);
+    const uint32_t lo = (t > st->before) ? (t - st->before) : 0u;
+    const uint32_t best = sd_view_argmin(&v, lo, t + st->after);
+    if (st->has_pend && (best <= st->pend_t + st->dedupe)) {
+        st->ev.n_merged++;
+        if ((best > st->pend_t) && (v.x[best & SD_RING_MASK] < v.x[st->pend_t & SD_RING_MASK])) {
+            st->pend_t = best;
+        }
+        return;
+    }
+    if (st->has_pend) {
+        sd_commit(st, st->pend_t);
+    }
+    st->pend_t = best;
+    st->has_pend = true;
+}
+
+static void sd_cand_push(sd_stream_t *st, uint32_t t)
+{
+    if (st->cand_count >= SD_CAND_MAX) {
+        st->ev.n_cand_dropped++;
+        return;
+    }
+    st->cand[(st->cand_head + st->cand_count) % SD_CAND_MAX] = t;
+    st->cand_count++;
+}
+
+/* Next centre (wavelet) or sample (threshold) the online detector will look
+ * at: every future candidate lies at or after it. */
+static uint32_t sd_next_centre(const sd_stream_t *st)
+{
+    return (st->n > st->dmax) ? (st->n - st->dmax) : 0u;
+}
+
+/* Lower bound on the aligned time of every future emission. */
+static uint32_t sd_floor(const sd_stream_t *st)
+{
+    uint32_t f = st->in_run ? st->run_start : sd_next_centre(st);
+    if (st->grp_open && (st->grp_first < f)) {
+        f = st->grp_first;
+    }
+    if ((st->cand_count > 0u) && (st->cand[st->cand_head] < f)) {
+        f = st->cand[st->cand_head];
+    }
+    return (f > st->before) ? (f - st->before) : 0u;
+}
+
+uint32_t sd_stream_horizon(const sd_stream_t *st, bool *has_pend, uint32_t *pend_t)
+{
+    if (st == NULL) {
+        return 0u;
+    }
+    if (has_pend != NULL) {
+        *has_pend = st->has_pend;
+    }
+    if (pend_t != NULL) {
+        *pend_t = st->pend_t;
+    }
+    if (st->phase == SD_PHASE_DONE) {
+        return SD_NONE;
+    }
+    return ((st->phase == SD_PHASE_RUN) || (st->phase == SD_PHASE_REPLAY) || (st->phase == SD_PHASE_ENDED))
+               ? sd_floor(st)
+               : 0u;
+}
+
+/* ---- wavelet statistics (Nenadic & Burdick) ----------------------------- */
+
+/* Decision threshold of scale s from sigma, M (mean supra-threshold |c|) and
+ * P(spike): M/2 + sigma^2/M (L + ln(P(noise)/P(spike))), clamped at 0. */
+static void sd_scale_decision(sd_stream_t *st, unsigned s, uint64_t sum, uint32_t hits, uint32_t count)
+{
+    const double n_eff = (count > 0u) ? (double)count : 1.0;
+    const double sigma = st->sigma_c[s];
+    const double m = (hits > 0u) ? ((double)sum / (double)hits) : st->hard_c[s];
+    const double p_spike = (hits > 0u) ? ((double)hits / n_eff) : (1.0 / n_eff);
+    const double ln_prior = (p_spike < 1.0) ? log((1.0 - p_spike) / p_spike) : -30.0;
+    double dth = 0.5 * m + sigma * sigma / m * (SD_L_SCALE * st->cfg.cost_ratio_l + ln_prior);
+    dth = fmin(fmax(dth, 0.0), 4.0e9);
+    st->dth_i[s] = (uint32_t)dth; /* |c| integer: |c| > dth  <=>  |c| > floor(dth) */
+    st->lo_i[s] = (st->dth_i[s] < st->hard_i[s]) ? st->dth_i[s] : st->hard_i[s];
+    st->ev.scale_dth[s] = dth / st->knorm[s];
+}
+
+/* Coefficient magnitudes of every scale at centre n - dmax, from the P2 ring
+ * that holds P2 up to sample n. Sign in *neg (bit s). */
+static void sd_coefs(const sd_stream_t *st, uint32_t n, uint32_t *mag, uint32_t *neg)
+{
+    const uint32_t *r = st->p2ring;
+    *neg = 0u;
+    for (unsigned s = 0u; s < st->ns; ++s) {
+        const uint32_t i0 = n - st->lag[s];
+        const uint32_t w = st->box[s];
+        uint32_t a;
+        if (st->cfg.wavelet == SD_WAVELET_MEXHAT) {
+            a = r[i0 & SD_P2_MASK] - 4u * r[(i0 - w) & SD_P2_MASK] + 6u * r[(i0 - 2u * w) & SD_P2_MASK] -
+                4u * r[(i0 - 3u * w) & SD_P2_MASK] + r[(i0 - 4u * w) & SD_P2_MASK];
+        } else {
+            a = r[i0 & SD_P2_MASK] - 3u * r[(i0 - w) & SD_P2_MASK] + 3u * r[(i0 - 2u * w) & SD_P2_MASK] -
+                r[(i0 - 3u * w) & SD_P2_MASK];
+        }
+        const bool is_neg = (a & 0x80000000u) != 0u;
+        mag[s] = is_neg ? (0u - a) : a;
+        *neg |= is_neg ? (1u << s) : 0u;
+    }
+}
+
+typedef enum { SD_PASS_MOMENTS, SD_PASS_COARSE, SD_PASS_FINE, SD_PASS_HITS } sd_pass_t;
+
+typedef struct {
+    int64_t sum[MD_WAVELET_SCALES_MAX];
+    uint64_t maxabs[MD_WAVELET_SCALES_MAX];
+    int64_t mean[MD_WAVELET_SCALES_MAX];
+    uint32_t shift[MD_WAVELET_SCALES_MAX];
+    uint32_t count;
+} sd_warm_t;
+
+/* One pass over the warm-up coefficients (every valid centre). For the
+ * histogram passes only scale `s` is binned; `coarse` selects the fine bin. */
+static void sd_warm_pass(sd_stream_t *st, sd_pass_t pass, unsigned s, uint32_t coarse, sd_warm_t *w)
+{
+    uint32_t p1 = 0u, p2 = 0u;
+    uint32_t mag[MD_WAVELET_SCALES_MAX];
+    uint32_t neg = 0u;
+    memset(st->p2ring, 0, sizeof st->p2ring);
+    memset(st->rs.bins, 0, sizeof st->rs.bins);
+    w->count = 0u;
+    for (uint32_t n = 0u; n < st->warm_n; ++n) {
+        const int32_t xv = st->buf[n];
+        p1 += (uint32_t)xv;
+        p2 += p1;
+        st->p2ring[n & SD_P2_MASK] = p2;
+        if (n < st->dmax + st->c_first) {
+            continue; /* centre n - dmax before the first full kernel */
+        }
+        sd_coefs(st, n, mag, &neg);
+        w->count++;
+        for (unsigned j = 0u; j < st->ns; ++j) {
+            const int64_t c = ((neg >> j) & 1u) ? -(int64_t)mag[j] : (int64_t)mag[j];
+            if (pass == SD_PASS_MOMENTS) {
+                w->sum[j] += c;
+                w->maxabs[j] = (mag[j] > w->maxabs[j]) ? mag[j] : w->maxabs[j];
+            } else if (pass == SD_PASS_HITS) {
+                if (mag[j] > st->hard_i[j]) {
+                    st->hits[j]++;
+                    st->sum_sig[j] += mag[j];
+                }
+            } else if (j == s) {
+                const int64_t d = c - w->mean[j];
+                const uint32_t u = (uint32_t)((uint64_t)((d < 0) ? -d : d) >> w->shift[j]);
+                if (pass == SD_PASS_COARSE) {
+                    st->rs.bins[u >> 8u]++;
+                } else if ((u >> 8u) == coarse) {
+                    st->rs.bins[u & 0xFFu]++;
+                } else {
+                    /* other coarse bins do not matter for this rank */
+                }
+            } else {
+                /* other scales are binned in their own passes */
             }
         }
     }
-    det->state = SD_STATE_STREAMING;
+}
+
+/* Exact value (to 2^shift counts) of rank k of |c - mean| for scale s. */
+static double sd_warm_rank(sd_stream_t *st, unsigned s, uint64_t k, sd_warm_t *w)
+{
+    uint64_t before = 0u, before_fine = 0u;
+    sd_warm_pass(st, SD_PASS_COARSE, s, 0u, w);
+    const size_t coarse = rs_rank_bin(st->rs.bins, RS_LEVEL_BINS, k, &before);
+    sd_warm_pass(st, SD_PASS_FINE, s, (uint32_t)coarse, w);
+    const size_t fine = rs_rank_bin(st->rs.bins, RS_LEVEL_BINS, k - before, &before_fine);
+    const double v = (double)((coarse << 8u) | fine);
+    /* a value v of the shifted integer stands for [v, v+1) * 2^shift */
+    return (w->shift[s] == 0u) ? v : ((v + 0.5) * ldexp(1.0, (int)w->shift[s]));
+}
+
+/* Per-scale statistics of Nenadic & Burdick on the warm-up: sigma =
+ * median(|c - mean c|)/0.6745, hard threshold sigma*sqrt(2 ln N) with N the
+ * nominal interval length, M and P(spike) from the supra-threshold
+ * coefficients. Returns 0 if no scale carries noise. */
+static int sd_wavelet_stats(sd_stream_t *st)
+{
+    sd_warm_t w;
+    memset(&w, 0, sizeof w);
+    sd_warm_pass(st, SD_PASS_MOMENTS, 0u, 0u, &w);
+    const uint64_t total = w.count;
+    const double n_nom = fmax(st->cfg.interval_s * (double)st->cfg.sample_rate_hz, (double)total + 2.0);
+    int any = 0;
+    for (unsigned s = 0u; s < st->ns; ++s) {
+        w.mean[s] = (int64_t)llround((double)w.sum[s] / (double)total);
+        const uint64_t range = w.maxabs[s] + (uint64_t)((w.mean[s] < 0) ? -w.mean[s] : w.mean[s]);
+        w.shift[s] = 0u;
+        for (unsigned k = 0u; (k < 32u) && ((range >> w.shift[s]) > 0xFFFFu); ++k) {
+            w.shift[s]++;
+        }
+        const double med = 0.5 * (sd_warm_rank(st, s, (total - 1u) / 2u, &w) + sd_warm_rank(st, s, total / 2u, &w));
+        st->sigma_c[s] = med / SD_MAD_TO_SIGMA;
+        st->hard_c[s] = st->sigma_c[s] * sqrt(2.0 * log(n_nom));
+        st->hard_i[s] = (uint32_t)fmin(st->hard_c[s], 4.0e9);
+        st->ev.scale_width_ms[s] = sd_scale_width_ms(&st->cfg, s);
+        st->ev.scale_sigma[s] = st->sigma_c[s] / st->knorm[s];
+        if (!(st->sigma_c[s] > 0.0)) {
+            st->hard_i[s] = SD_NONE; /* flat at this scale: never fires */
+            st->dth_i[s] = SD_NONE;
+            st->lo_i[s] = SD_NONE;
+            continue;
+        }
+        any = 1;
+    }
+    if (!any) {
+        return 0;
+    }
+    sd_warm_pass(st, SD_PASS_HITS, 0u, 0u, &w);
+    for (unsigned s = 0u; s < st->ns; ++s) {
+        if (st->sigma_c[s] > 0.0) {
+            sd_scale_decision(st, s, st->sum_sig[s], st->hits[s], w.count);
+        }
+    }
+    /* the online pass (replay included) recounts from zero */
+    memset(st->sum_sig, 0, sizeof st->sum_sig);
+    memset(st->hits, 0, sizeof st->hits);
+    memset(st->p2ring, 0, sizeof st->p2ring);
+    return 1;
+}
+
+static md_status_t sd_calibrate(sd_stream_t *st)
+{
+    const uint32_t n = st->warm_n;
+    st->ev.warmup_samples = n;
+    if (n < 16u) {
+        return MD_E_DEGENERATE;
+    }
+    st->ev.offset = (int32_t)llround((double)st->warm_sum / (double)n);
+    st->ev.noise_sigma = rs_abs_median_i16(st->buf, n, st->ev.offset, &st->rs) / SD_MAD_TO_SIGMA;
+    if (st->cfg.method == SD_METHOD_THRESHOLD) {
+        if (!(st->ev.noise_sigma > 0.0)) {
+            return MD_E_DEGENERATE;
+        }
+        st->ev.threshold = st->cfg.k_sigma * st->ev.noise_sigma;
+        /* integer x: offset - x > thr  <=>  x <= offset - floor(thr) - 1 */
+        const int32_t k = (int32_t)fmin(floor(st->ev.threshold), 70000.0) + 1;
+        st->thr_lo = st->ev.offset - k;
+        st->thr_hi = (st->cfg.polarity == SD_POLARITY_BOTH) ? (st->ev.offset + k) : INT32_MAX;
+        return MD_OK;
+    }
+    st->ev.n_scales = st->ns;
+    if ((n < 2u * st->dmax + st->c_first + 8u) || !sd_wavelet_stats(st)) {
+        return MD_E_DEGENERATE;
+    }
+    st->next_refine = SD_REFINE_SAMPLES * (st->warm_n / SD_REFINE_SAMPLES + 1u);
+    return MD_OK;
+}
+
+/* ---- online detection ---------------------------------------------------- */
+
+static void sd_group_add(sd_stream_t *st, uint32_t mid)
+{
+    if (st->grp_open && (mid - st->grp_last < st->merge) && (mid - st->grp_first <= SD_RUN_MAX)) {
+        st->grp_last = mid;
+        return;
+    }
+    if (st->grp_open) {
+        sd_cand_push(st, (st->grp_first + st->grp_last) / 2u);
+    }
+    st->grp_first = mid;
+    st->grp_last = mid;
+    st->grp_open = true;
+}
+
+/* A run of spike-like centres (any scale above its decision threshold)
+ * gives a candidate at its middle; runs closer than the merge distance form
+ * one group, emitted at the group's middle (as in the reference code). */
+static void sd_run_edge(sd_stream_t *st, uint32_t c, bool hit)
+{
+    if (hit && !st->in_run) {
+        st->run_start = c;
+        st->in_run = true;
+    } else if (!hit && st->in_run) {
+        sd_group_add(st, (st->run_start + c - 1u) / 2u);
+        st->in_run = false;
+    } else if (hit && (c - st->run_start >= SD_RUN_MAX)) {
+        sd_group_add(st, (st->run_start + c - 1u) / 2u); /* split an endless run: bounded latency */
+        st->run_start = c;
+    } else {
+        /* no change */
+    }
+    st->due = st->n; /* let the service look at groups and commits now */
+}
+
+static void sd_refine(sd_stream_t *st)
+{
+    for (unsigned s = 0u; s < st->ns; ++s) {
+        if (st->sigma_c[s] > 0.0) {
+            sd_scale_decision(st, s, st->sum_sig[s], st->hits[s], st->n_coefs);
+        }
+    }
+}
+
+static uint32_t sd_min_u32(uint32_t a, uint32_t b)
+{
+    return (a < b) ? a : b;
+}
+
+/* Slow path, run when the sample index reaches `due`: closes a group no
+ * future run can join, aligns candidates whose look-ahead has arrived,
+ * commits the pending event once no future candidate can merge with it,
+ * refines the wavelet statistics, and computes the next `due`. */
+static void sd_service(sd_stream_t *st)
+{
+    if (st->grp_open) {
+        const uint32_t next_mid = st->in_run ? st->run_start : sd_next_centre(st);
+        if (next_mid >= st->grp_last + st->merge) {
+            sd_cand_push(st, (st->grp_first + st->grp_last) / 2u);
+            st->grp_open = false;
+        }
+    }
+    for (uint32_t k = 0u; (k < SD_CAND_MAX) && (st->cand_count > 0u); ++k) {
+        const uint32_t t = st->cand[st->cand_head];
+        if (t + st->after >= st->n) {
+            break;
+        }
+        st->cand_head = (st->cand_head + 1u) % SD_CAND_MAX;
+        st->cand_count--;
+        sd_emit(st, t);
+    }
+    if (st->has_pend && (sd_floor(st) > st->pend_t + st->dedupe)) {
+        sd_commit(st, st->pend_t);
+        st->has_pend = false;
+    }
+    if ((st->cfg.method == SD_METHOD_WAVELET) && (st->n >= st->next_refine)) {
+        if (st->cfg.refine && (st->n > st->warm_n)) {
+            sd_refine(st);
+        }
+        st->next_refine += SD_REFINE_SAMPLES;
+    }
+    uint32_t due = (st->cfg.method == SD_METHOD_WAVELET) ? st->next_refine : SD_NONE;
+    if (st->cand_count > 0u) {
+        due = sd_min_u32(due, st->cand[st->cand_head] + st->after + 1u);
+    }
+    if (st->grp_open) {
+        due = sd_min_u32(due, st->grp_last + st->merge + st->dmax);
+    }
+    if (st->has_pend) {
+        due = sd_min_u32(due, st->pend_t + st->dedupe + st->before + st->dmax + 1u);
+    }
+    st->due = (due > st->n) ? due : (st->n + 1u);
+}
+
+static void sd_step_threshold(sd_stream_t *st, const int16_t *x, uint32_t k)
+{
+    for (uint32_t i = 0u; i < k; ++i) {
+        const int32_t v = x[i];
+        const uint32_t n = st->n;
+        st->buf[n & SD_RING_MASK] = x[i];
+        const bool above = (v <= st->thr_lo) || (v >= st->thr_hi);
+        if (above && !st->above_prev) {
+            sd_cand_push(st, n);
+            st->due = sd_min_u32(st->due, n + st->after + 1u);
+        }
+        st->above_prev = above;
+        st->n = n + 1u;
+        if (st->n >= st->due) {
+            sd_service(st);
+        }
+    }
+}
+
+static void sd_step_wavelet(sd_stream_t *st, const int16_t *x, uint32_t k)
+{
+    uint32_t mag[MD_WAVELET_SCALES_MAX];
+    uint32_t neg = 0u;
+    const uint32_t first = st->dmax + st->c_first;
+    for (uint32_t i = 0u; i < k; ++i) {
+        const uint32_t n = st->n;
+        st->buf[n & SD_RING_MASK] = x[i];
+        const int32_t xv = x[i];
+        st->p1 += (uint32_t)xv;
+        st->p2 += st->p1;
+        st->p2ring[n & SD_P2_MASK] = st->p2;
+        st->n = n + 1u;
+        if (n >= first) {
+            sd_coefs(st, n, mag, &neg);
+            st->n_coefs++;
+            bool hit = false;
+            for (unsigned s = 0u; s < st->ns; ++s) {
+                if (mag[s] > st->lo_i[s]) { /* rare: above the lower of the two thresholds */
+                    if (mag[s] > st->hard_i[s]) {
+                        st->hits[s]++;
+                        st->sum_sig[s] += mag[s];
+                    }
+                    hit = hit || (mag[s] > st->dth_i[s]);
+                }
+            }
+            if ((hit != st->in_run) || (hit && (n - st->dmax - st->run_start >= SD_RUN_MAX))) {
+                sd_run_edge(st, n - st->dmax, hit);
+            }
+        }
+        if (st->n >= st->due) {
+            sd_service(st);
+        }
+    }
+}
+
+static void sd_step(sd_stream_t *st, const int16_t *x, uint32_t k)
+{
+    if (st->cfg.method == SD_METHOD_THRESHOLD) {
+        sd_step_threshold(st, x, k);
+    } else {
+        sd_step_wavelet(st, x, k);
+    }
+}
+
+/* Samples to the next multiple of SD_STEP_SAMPLES of the online index. */
+static uint32_t sd_step_room(const sd_stream_t *st)
+{
+    return SD_STEP_SAMPLES - (st->n % SD_STEP_SAMPLES);
+}
+
+static void sd_replay_some(sd_stream_t *st)
+{
+    const uint32_t left = st->warm_n - st->replay_pos;
+    const uint32_t k = sd_min_u32(left, sd_step_room(st));
+    /* buf[replay_pos..] is read before the delay line (aliased on buf's
+     * start) overwrites index n & mask <= n: nothing unread is clobbered. */
+    sd_step(st, &st->buf[st->replay_pos], k);
+    st->replay_pos += k;
+    if ((st->replay_pos >= st->warm_n) && (st->phase == SD_PHASE_REPLAY)) {
+        st->phase = SD_PHASE_RUN;
+    }
+}
+
+static md_status_t sd_warm_take(sd_stream_t *st, const int16_t *x, size_t n, size_t *used)
+{
+    const uint32_t room = st->warm_target - st->warm_n;
+    const uint32_t k = (n < (size_t)room) ? (uint32_t)n : room;
+    for (uint32_t i = 0u; i < k; ++i) {
+        st->buf[st->warm_n + i] = x[i];
+        st->warm_sum += x[i];
+    }
+    st->warm_n += k;
+    *used = k;
+    if (st->warm_n >= st->warm_target) {
+        st->status = sd_calibrate(st);
+        st->phase = SD_PHASE_REPLAY;
+    }
+    return st->status;
+}
+
+md_status_t sd_stream_push(sd_stream_t *st, const int16_t *x, size_t n, size_t *used)
+{
+    if ((st == NULL) || (used == NULL) || ((x == NULL) && (n > 0u))) {
+        return MD_E_ARG;
+    }
+    *used = 0u;
+    if ((st->phase == SD_PHASE_IDLE) || (st->phase == SD_PHASE_DONE) ||
+        ((st->phase == SD_PHASE_ENDED) && (n > 0u))) {
+        return MD_E_STATE;
+    }
+    if (st->status < 0) {
+        *used = n; /* a flat warm-up: the interval is consumed, detection is off */
+        return st->status;
+    }
+    if (st->phase == SD_PHASE_WARMUP) {
+        return sd_warm_take(st, x, n, used);
+    }
+    if (st->replay_pos < st->warm_n) {
+        sd_replay_some(st);
+        return MD_OK;
+    }
+    if ((uint64_t)st->n + n > SD_MAX_INTERVAL_SAMPLES) {
+        return MD_E_CAPACITY;
+    }
+    const uint32_t k = sd_min_u32((n < SD_STEP_SAMPLES) ? (uint32_t)n : SD_STEP_SAMPLES, sd_step_room(st));
+    sd_step(st, x, k);
+    *used = k;
+    return MD_OK;
+}
+
+md_status_t sd_stream_end(sd_stream_t *st)
+{
+    if (st == NULL) {
+        return MD_E_ARG;
+    }
+    if ((st->phase == SD_PHASE_IDLE) || (st->phase == SD_PHASE_ENDED) || (st->phase == SD_PHASE_DONE)) {
+        return MD_E_STATE;
+    }
+    if ((st->phase == SD_PHASE_WARMUP) && (st->status == MD_OK)) {
+        st->ev.flags |= SD_FLAG_SHORT;
+        st->status = sd_calibrate(st);
+    }
+    st->phase = SD_PHASE_ENDED;
+    return (st->status < 0) ? st->status : MD_OK;
+}
+
+md_status_t sd_stream_finish(sd_stream_t *st)
+{
+    if (st == NULL) {
+        return MD_E_ARG;
+    }
+    if ((st->phase != SD_PHASE_ENDED) || sd_stream_busy(st)) {
+        return MD_E_STATE;
+    }
+    st->phase = SD_PHASE_DONE;
+    st->ev.n_samples = st->n;
+    if (st->status < 0) {
+        st->ev.n_samples = st->warm_n;
+        return st->status;
+    }
+    if (st->cfg.method == SD_METHOD_WAVELET) {
+        if (st->in_run) { /* the centre after the last valid one ends the run */
+            sd_run_edge(st, sd_next_centre(st), false);
+        }
+        if (st->grp_open) {
+            sd_cand_push(st, (st->grp_first + st->grp_last) / 2u);
+            st->grp_open = false;
+        }
+        for (unsigned s = 0u; s < st->ns; ++s) {
+            st->ev.scale_hits[s] = st->hits[s];
+        }
+    }
+    for (uint32_t k = 0u; (k < SD_CAND_MAX) && (st->cand_count > 0u); ++k) {
+        sd_emit(st, st->cand[st->cand_head]); /* look-ahead clamped to the last sample */
+        st->cand_head = (st->cand_head + 1u) % SD_CAND_MAX;
+        st->cand_count--;
+    }
+    if (st->has_pend) {
+        sd_commit(st, st->pend_t);
+        st->has_pend = false;
+    }
+    return MD_OK;
+}
+
+/* ---- offline convenience path ------------------------------------------- */
+
+#define SD_DET_IDLE 0
+#define SD_DET_STREAMING 1
+#define SD_DET_DONE 2
+
+md_status_t sd_init(sd_detector_t *det, const sd_config_t *cfg, int16_t *buf, size_t cap)
+{
+    if ((det == NULL) || (buf == NULL) || (cap == 0u) || (cap > SD_MAX_INTERVAL_SAMPLES)) {
+        return MD_E_ARG;
+    }
+    det->state = SD_DET_IDLE;
+    const md_status_t r = sd_stream_init(&det->s, cfg);
+    if (r < 0) {
+        return r;
+    }
+    det->buf = buf;
+    det->cap = cap;
+    det->n = 0u;
+    det->n_dropped = 0u;
+    det->state = SD_DET_STREAMING;
     return MD_OK;
 }
 
 md_status_t sd_restart(sd_detector_t *det)
 {
-    if ((det == NULL) || (det->state == SD_STATE_IDLE)) {
+    if ((det == NULL) || (det->state == SD_DET_IDLE)) {
         return MD_E_STATE;
     }
     det->n = 0u;
-    det->sum = 0;
-    det->n_chunks = 0u;
     det->n_dropped = 0u;
-    det->state = SD_STATE_STREAMING;
-    return MD_OK;
+    det->state = SD_DET_STREAMING;
+    return sd_stream_restart(&det->s);
+}
+
+/* Streams x through the detector (no consumer to service between steps). */
+static void sd_feed(sd_stream_t *st, const int16_t *x, size_t n)
+{
+    size_t off = 0u;
+    for (size_t it = 0u; (it <= n + SD_WARMUP_MAX + 2u) && ((off < n) || sd_stream_busy(st)); ++it) {
+        size_t used = 0u;
+        if (sd_stream_push(st, &x[off], n - off, &used) < 0) {
+            return; /* flat warm-up or capacity: reported by sd_finish */
+        }
+        off += used;
+    }
 }
 
 md_status_t sd_push(sd_detector_t *det, const int16_t *samples, size_t n)
@@ -156,23 +873,40 @@ md_status_t sd_push(sd_detector_t *det, const int16_t *samples, size_t n)
     if ((det == NULL) || ((samples == NULL) && (n > 0u))) {
         return MD_E_ARG;
     }
-    if (det->state != SD_STATE_STREAMING) {
+    if (det->state != SD_DET_STREAMING) {
         return MD_E_STATE;
     }
     const size_t room = det->cap - det->n;
     const size_t take = (n < room) ? n : room;
-    for (size_t i = 0u; i < take; ++i) {
-        det->buf[det->n + i] = samples[i];
-        det->sum += samples[i];
-    }
+    memcpy(&det->buf[det->n], samples, take * sizeof samples[0]);
+    sd_feed(&det->s, &det->buf[det->n], take);
     det->n += take;
-    det->n_chunks++;
     if (take < n) {
         const size_t lost = n - take;
         det->n_dropped += (lost > 0xFFFFFFFFu - det->n_dropped) ? (0xFFFFFFFFu - det->n_dropped) : (uint32_t)lost;
         return MD_E_CAPACITY;
     }
     return MD_OK;
+}
+
+md_status_t sd_finish(sd_detector_t *det, sd_events_t *ev)
+{
+    if ((det == NULL) || (ev == NULL)) {
+        return MD_E_ARG;
+    }
+    if (det->state != SD_DET_STREAMING) {
+        return MD_E_STATE;
+    }
+    det->state = SD_DET_DONE;
+    md_status_t r = sd_stream_end(&det->s);
+    if (r == MD_OK) {
+        sd_feed(&det->s, NULL, 0u);
+        r = sd_stream_finish(&det->s);
+    }
+    *ev = det->s.ev;
+    ev->n_samples = (uint32_t)det->n;
+    ev->flags |= (det->n_dropped > 0u) ? SD_FLAG_TRUNCATED : 0u;
+    return r;
 }
 
 const int16_t *sd_samples(const sd_detector_t *det, size_t *n)
@@ -184,199 +918,4 @@ const int16_t *sd_samples(const sd_detector_t *det, size_t *n)
         *n = det->n;
     }
     return det->buf;
-}
-
-/* Moves a candidate to the minimum of x in [t - before, t + after] (the
- * thesis aligns spikes by their minimum), then either merges it into the last
- * stored event (closer than `dedupe`; the deeper minimum wins) or appends it. */
-static void sd_emit(const sd_detector_t *det, sd_events_t *ev, size_t t, size_t before, size_t after,
-                    size_t dedupe)
-{
-    const size_t lo = (t > before) ? (t - before) : 0u;
-    const size_t hi = (t + after < det->n) ? (t + after) : (det->n - 1u);
-    size_t best = lo;
-    for (size_t i = lo + 1u; i <= hi; ++i) {
-        if (det->buf[i] < det->buf[best]) {
-            best = i;
-        }
-    }
-    const size_t last = (ev->n > 0u) ? (size_t)ev->t[ev->n - 1u] : 0u;
-    if ((ev->n > 0u) && (best <= last + dedupe)) {
-        ev->n_merged++;
-        if ((best > last) && (det->buf[best] < det->buf[last])) {
-            ev->t[ev->n - 1u] = (uint32_t)best;
-        }
-        return;
-    }
-    if (ev->n >= MD_MAX_SPIKES) {
-        ev->n_overflow++;
-        ev->flags |= SD_FLAG_OVERFLOW;
-        return;
-    }
-    ev->t[ev->n] = (uint32_t)best;
-    ev->n++;
-}
-
-static md_status_t sd_detect_threshold(sd_detector_t *det, sd_events_t *ev)
-{
-    ev->threshold = det->cfg.k_sigma * ev->noise_sigma;
-    const double thr = ev->threshold;
-    const int both = (det->cfg.polarity == SD_POLARITY_BOTH);
-    const size_t before = both ? det->align_samples : 0u;
-    int above_prev = 0;
-    for (size_t i = 0u; i < det->n; ++i) {
-        const double v = (double)((int32_t)det->buf[i] - ev->offset);
-        const int above = (-v > thr) || (both && (v > thr));
-        if (above && !above_prev) {
-            sd_emit(det, ev, i, before, det->align_samples, det->dead_samples);
-        }
-        above_prev = above;
-    }
-    return MD_OK;
-}
-
-/* Wavelet coefficient of scale s centred on sample n (needs half_max <= n < N - half_max). */
-static double sd_coef(const sd_detector_t *det, unsigned s, size_t n, int32_t offset)
-{
-    const size_t half = det->half[s];
-    const int16_t *x = &det->buf[n - half];
-    const double *h = det->taps[s];
-    double c = 0.0;
-    for (size_t j = 0u; j <= 2u * half; ++j) {
-        c += h[j] * (double)((int32_t)x[j] - offset);
-    }
-    return c;
-}
-
-/* Per-scale statistics of Nenadic & Burdick: sigma = median(|c - mean c|)/0.6745,
- * hard threshold sigma*sqrt(2 ln N), M = mean |c| above it, prior P(spike) =
- * their fraction, decision threshold M/2 + sigma^2/M (L + ln(P(noise)/P(spike))).
- * Returns 0 if the scale carries no noise (flat signal) and must be skipped. */
-static int sd_scale_threshold(sd_detector_t *det, unsigned s, sd_events_t *ev)
-{
-    const size_t lo = det->half_max;
-    const size_t hi = det->n - det->half_max;
-    const double n_eff = (double)(hi - lo);
-    double sum = 0.0, cmin = 0.0, cmax = 0.0;
-    for (size_t n = lo; n < hi; ++n) { /* pass 1: mean and range */
-        const double c = sd_coef(det, s, n, ev->offset);
-        sum += c;
-        cmin = (n == lo) ? c : fmin(cmin, c);
-        cmax = (n == lo) ? c : fmax(cmax, c);
-    }
-    const double mean = sum / n_eff;
-    const double range = fmax(cmax - mean, mean - cmin);
-    if (!(range > 0.0)) {
-        return 0;
-    }
-    const double width = range * (1.0 + 1e-9) / (double)SD_HIST_BINS;
-    memset(det->hist, 0, sizeof det->hist);
-    for (size_t n = lo; n < hi; ++n) { /* pass 2: histogram of |c - mean| */
-        const double b = fabs(sd_coef(det, s, n, ev->offset) - mean) / width;
-        det->hist[(b < (double)(SD_HIST_BINS - 1u)) ? (size_t)b : (SD_HIST_BINS - 1u)]++;
-    }
-    const uint64_t total = (uint64_t)(hi - lo);
-    const double med = 0.5 * (rs_hist_rank_value(det->hist, SD_HIST_BINS, width, total, (total - 1u) / 2u) +
-                              rs_hist_rank_value(det->hist, SD_HIST_BINS, width, total, total / 2u));
-    const double sigma = med / SD_MAD_TO_SIGMA;
-    if (!(sigma > 0.0)) {
-        return 0;
-    }
-    const double th = sigma * sqrt(2.0 * log(n_eff));
-    double sum_sig = 0.0;
-    uint32_t hits = 0u;
-    for (size_t n = lo; n < hi; ++n) { /* pass 3: supra-threshold mean */
-        const double a = fabs(sd_coef(det, s, n, ev->offset));
-        if (a > th) {
-            sum_sig += a;
-            hits++;
-        }
-    }
-    const double m = (hits > 0u) ? (sum_sig / (double)hits) : th;
-    const double p_spike = (hits > 0u) ? ((double)hits / n_eff) : (1.0 / n_eff);
-    ev->scale_sigma[s] = sigma;
-    ev->scale_hits[s] = hits;
-    const double dth = 0.5 * m + sigma * sigma / m * (SD_L_SCALE * det->cfg.cost_ratio_l + log((1.0 - p_spike) / p_spike));
-    ev->scale_dth[s] = fmax(dth, 0.0);
-    return 1;
-}
-
-/* Pass 4: a sample is spike-like if any active scale exceeds its decision
- * threshold; each run of such samples gives a candidate at its centre, and
- * candidates closer than the mean width are merged before alignment. */
-static md_status_t sd_detect_wavelet(sd_detector_t *det, sd_events_t *ev)
-{
-    if (det->n < 4u * det->half_max + 8u) {
-        return MD_E_DEGENERATE;
-    }
-    int active[MD_WAVELET_SCALES_MAX] = {0};
-    int any_active = 0;
-    ev->n_scales = det->cfg.n_scales;
-    for (unsigned s = 0u; s < det->cfg.n_scales; ++s) {
-        ev->scale_width_ms[s] = sd_scale_width_ms(&det->cfg, s);
-        active[s] = sd_scale_threshold(det, s, ev);
-        any_active |= active[s];
-    }
-    if (!any_active) {
-        return MD_E_DEGENERATE;
-    }
-    const size_t lo = det->half_max;
-    const size_t hi = det->n - det->half_max;
-    const size_t merge = det->merge_samples;
-    size_t run_start = 0u, pend_first = 0u, pend_last = 0u;
-    int in_run = 0, pending = 0;
-    for (size_t n = lo; n <= hi; ++n) {
-        int hit = 0;
-        for (unsigned s = 0u; (s < det->cfg.n_scales) && !hit && (n < hi); ++s) {
-            hit = active[s] && (fabs(sd_coef(det, s, n, ev->offset)) > ev->scale_dth[s]);
-        }
-        if (hit && !in_run) {
-            run_start = n;
-        } else if (!hit && in_run) {
-            const size_t mid = (run_start + n - 1u) / 2u;
-            if (pending && (mid - pend_last < merge)) {
-                pend_last = mid;
-            } else {
-                if (pending) {
-                    sd_emit(det, ev, (pend_first + pend_last) / 2u, det->align_samples, det->align_samples, merge);
-                }
-                pend_first = mid;
-                pend_last = mid;
-                pending = 1;
-            }
-        } else {
-            /* inside or outside a run: nothing changes */
-        }
-        in_run = hit;
-    }
-    if (pending) {
-        sd_emit(det, ev, (pend_first + pend_last) / 2u, det->align_samples, det->align_samples, merge);
-    }
-    return MD_OK;
-}
-
-md_status_t sd_finish(sd_detector_t *det, sd_events_t *ev)
-{
-    if ((det == NULL) || (ev == NULL)) {
-        return MD_E_ARG;
-    }
-    if (det->state != SD_STATE_STREAMING) {
-        return MD_E_STATE;
-    }
-    det->state = SD_STATE_DONE;
-    memset(ev, 0, sizeof *ev);
-    ev->n_samples = (uint32_t)det->n;
-    ev->flags = (det->n_dropped > 0u) ? SD_FLAG_TRUNCATED : 0u;
-    if (det->n < 16u) {
-        return MD_E_DEGENERATE;
-    }
-    ev->offset = (int32_t)lround((double)det->sum / (double)det->n);
-    ev->noise_sigma = rs_abs_median_i16(det->buf, det->n, ev->offset, &det->rs) / SD_MAD_TO_SIGMA;
-    if (det->cfg.method == SD_METHOD_WAVELET) {
-        return sd_detect_wavelet(det, ev);
-    }
-    if (!(ev->noise_sigma > 0.0)) {
-        return MD_E_DEGENERATE;
-    }
-    return sd_detect_threshold(det, ev);
 }

@@ -4,26 +4,39 @@
 /// Two detectors, chosen by sd_config_t.method:
 ///  - SD_METHOD_THRESHOLD: amplitude threshold k * median(|x|)/0.6745 with a
 ///    dead time (the usual baseline);
-///  - SD_METHOD_WAVELET: the per-scale Bayesian wavelet detector of Nenadic &
-///    Burdick (IEEE TBME 52(1), 2005) that the thesis uses, on a fixed bank of
-///    Mexican-hat (or first-derivative-of-Gaussian) filters; see docs/detector.md
-///    for how it differs from the published bior1.5 CWT.
+///  - SD_METHOD_WAVELET: the per-scale Bayesian decision rule of Nenadic &
+///    Burdick (IEEE TBME 52(1), 2005) that the thesis uses, on an undecimated
+///    bank of B-spline wavelets computed from running integer sums (5 taps
+///    per scale and sample, exact integer arithmetic); see docs/detector.md.
 ///
-/// Memory and passes. Both detectors need interval-wide statistics (medians)
-/// before any threshold is known, and the extractor needs samples on both
-/// sides of each spike. The detector therefore copies the streamed chunks
-/// into an int16 interval buffer that the caller owns (one sample per entry,
-/// sized for the longest interval), and runs detection in sd_finish() as a
-/// bounded number of passes over it. Estimating the noise from the first
-/// chunks instead would save that buffer but would not be the published
-/// detector (its σ, M and priors are interval-wide) and would still need a
-/// ring buffer for extraction. All other storage is inside sd_detector_t.
+/// Streaming with fixed memory. The thresholds need interval statistics
+/// (median-based sigmas), so the first `warmup_ms` of the interval are kept
+/// in a small buffer inside sd_stream_t (at most SD_WARMUP_MAX samples). At
+/// the end of the warm-up the statistics are computed from it (exact
+/// medians by histogram), the warm-up samples are re-scanned by the online
+/// detector ("replay"), and every later sample is decided as it arrives.
+/// The wavelet detector optionally refines M and P(spike) of each scale from
+/// all coefficients seen so far (`refine`); the sigmas stay those of the
+/// warm-up. A ring delay line of SD_RING_SAMPLES raw samples (aliased onto
+/// the start of the warm-up buffer once the warm-up has been replayed)
+/// serves the alignment search and the extractor (spike_extract.h).
 ///
-/// Use: sd_init() once, then per interval sd_push() chunks in order,
-/// sd_finish(), read sd_samples() for extraction, and sd_restart().
+/// Results do not depend on how the input is chunked: every decision is tied
+/// to a sample index, and sd_stream_push() stops at multiples of
+/// SD_STEP_SAMPLES so that a consumer serviced between calls sees the same
+/// state at the same sample indices whatever the chunk sizes.
+///
+/// Two APIs:
+///  - streaming (sd_stream_*): what the firmware runs, one sd_stream_t per
+///    channel (~25 kB), usually through spike_pipeline.h;
+///  - sd_detector_t (sd_init/sd_push/sd_finish/sd_samples): the OFFLINE
+///    CONVENIENCE PATH of round one, kept as a thin wrapper over the stream.
+///    It additionally copies the interval into a caller-owned buffer so that
+///    the buffer-based extractors of spike_extract.h can be used afterwards.
 #ifndef SPIKE_DETECT_H
 #define SPIKE_DETECT_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -32,14 +45,25 @@
 #include "signal/robust_stats.h"
 
 #define SD_MAX_INTERVAL_SAMPLES (1u << 24)  ///< longest interval accepted (14 min at 20 kHz)
-#define SD_TAPS_MAX 161u                    ///< taps of the widest wavelet filter
-#define SD_HIST_BINS 2048u                  ///< histogram bins for the wavelet-coefficient median
+#define SD_WARMUP_MAX 8192u                 ///< warm-up buffer (0.41 s at 20 kHz, 0.27 s at 30 kHz)
+#define SD_RING_SAMPLES 2048u               ///< raw-sample delay line (power of two)
+#define SD_P2_RING 256u                     ///< ring of the second running sum (power of two)
+#define SD_BOX_MAX 48u                      ///< widest B-spline box (samples); support 4*box - 1
+#define SD_STEP_SAMPLES 32u                 ///< sd_stream_push() stops at multiples of this sample index
+#define SD_CAND_MAX 64u                     ///< candidates waiting for their alignment look-ahead
+#define SD_ALIGN_MAX 128u                   ///< longest alignment search on either side (samples)
+#define SD_RUN_MAX 256u                     ///< a supra-threshold run longer than this is split
+#define SD_REFINE_SAMPLES 4096u             ///< refinement period of the wavelet statistics (samples)
 
 _Static_assert(MD_WAVELET_SCALES_MAX >= 1u && MD_WAVELET_SCALES_MAX <= 16u, "1..16 wavelet scales");
-_Static_assert((SD_TAPS_MAX % 2u) == 1u, "filters are centred: odd tap count");
+_Static_assert((SD_RING_SAMPLES & (SD_RING_SAMPLES - 1u)) == 0u, "ring size is a power of two");
+_Static_assert((SD_P2_RING & (SD_P2_RING - 1u)) == 0u, "ring size is a power of two");
+_Static_assert(SD_P2_RING > 4u * SD_BOX_MAX, "the widest kernel and its lag fit the running-sum ring");
+_Static_assert(SD_WARMUP_MAX >= SD_RING_SAMPLES, "the delay line aliases the warm-up buffer");
+_Static_assert(4ull * SD_BOX_MAX * SD_BOX_MAX * 32768ull < 2147483648ull, "coefficients fit int32 exactly");
 _Static_assert(MD_MAX_SPIKES <= SD_MAX_INTERVAL_SAMPLES, "spike list indexes samples");
 
-/// Which detector sd_finish() runs.
+/// Which detector runs.
 typedef enum {
     SD_METHOD_THRESHOLD = 0,  ///< k * MAD-sigma amplitude threshold with dead time
     SD_METHOD_WAVELET = 1     ///< Nenadic & Burdick per-scale Bayesian wavelet detector
@@ -51,10 +75,11 @@ typedef enum {
     SD_POLARITY_BOTH = 1  ///< |x - offset| > threshold
 } sd_polarity_t;
 
-/// Mother wavelet of the filter bank.
+/// Mother wavelet of the bank (both are B-spline approximations, correlation
+/// >= 0.98 with the continuous wavelet at the matched width).
 typedef enum {
-    SD_WAVELET_MEXHAT = 0,  ///< Mexican hat (negative 2nd derivative of a Gaussian)
-    SD_WAVELET_DOG1 = 1     ///< 1st derivative of a Gaussian (biphasic)
+    SD_WAVELET_MEXHAT = 0,  ///< second difference of a linear B-spline (Mexican-hat-like, 5 taps)
+    SD_WAVELET_DOG1 = 1     ///< first difference of a linear B-spline (biphasic, 4 taps)
 } sd_wavelet_t;
 
 /// Detector parameters; fill with sd_config_default() and adjust.
@@ -72,11 +97,16 @@ typedef struct {
     double width_max_ms;
     unsigned n_scales;         ///< 1..MD_WAVELET_SCALES_MAX, widths spaced evenly in the range
     double cost_ratio_l;       ///< L in [-0.2, 0.2] (scaled by 36.74 as in the reference code); > 0 favours fewer false alarms
+    /* streaming (appended in round two) */
+    double warmup_ms;          ///< statistics prefix, 5 ms .. SD_WARMUP_MAX samples
+    double interval_s;         ///< nominal interval length: N of the universal threshold sqrt(2 ln N)
+    bool refine;               ///< wavelet: refine M and P(spike) from every coefficient seen so far
 } sd_config_t;
 
 /// Result flags of one interval (bit set).
 #define SD_FLAG_OVERFLOW 0x1u   ///< more events than MD_MAX_SPIKES: later ones were counted, not stored
-#define SD_FLAG_TRUNCATED 0x2u  ///< samples beyond the interval buffer were dropped
+#define SD_FLAG_TRUNCATED 0x2u  ///< samples beyond the interval buffer were dropped (sd_detector_t only)
+#define SD_FLAG_SHORT 0x4u      ///< the interval ended inside the warm-up: statistics from what arrived
 
 /// Events of one interval. Times are sample indices of the waveform minimum,
 /// ascending; every event is at least the dedupe distance from its neighbours.
@@ -87,65 +117,177 @@ typedef struct {
     uint32_t n_merged;          ///< candidates folded into a neighbouring event
     uint32_t flags;             ///< SD_FLAG_*
     uint32_t n_samples;         ///< samples the detection ran on
-    int32_t offset;             ///< DC offset removed (rounded mean of the interval), ADC counts
-    double noise_sigma;         ///< median(|x - offset|)/0.6745, ADC counts
+    int32_t offset;             ///< DC offset removed (rounded mean of the warm-up), ADC counts
+    double noise_sigma;         ///< median(|x - offset|)/0.6745 over the warm-up, ADC counts
     double threshold;           ///< amplitude detector: k * noise_sigma (0 for the wavelet detector)
     unsigned n_scales;          ///< wavelet detector: scales used
     double scale_width_ms[MD_WAVELET_SCALES_MAX];  ///< spike width each scale is tuned to
-    double scale_sigma[MD_WAVELET_SCALES_MAX];     ///< coefficient noise sigma per scale
-    double scale_dth[MD_WAVELET_SCALES_MAX];       ///< Bayesian decision threshold per scale
-    uint32_t scale_hits[MD_WAVELET_SCALES_MAX];    ///< coefficients above the hard threshold
+    double scale_sigma[MD_WAVELET_SCALES_MAX];     ///< coefficient noise sigma per scale (unit-L2 kernel, counts)
+    double scale_dth[MD_WAVELET_SCALES_MAX];       ///< Bayesian decision threshold per scale (same units), last value
+    uint32_t scale_hits[MD_WAVELET_SCALES_MAX];    ///< coefficients above the hard threshold (whole interval)
+    uint32_t warmup_samples;    ///< samples the statistics came from
+    uint32_t n_cand_dropped;    ///< candidates lost because SD_CAND_MAX were waiting (never seen in practice)
 } sd_events_t;
 
-/// Detector state. Caller-owned (static storage recommended: ~30 kB with
-/// the default capacities); treat every member as private.
+/// Streaming detector of one channel. Caller-owned (static storage), about
+/// 25 kB; treat every member as private.
 typedef struct {
     sd_config_t cfg;
-    int16_t *buf;
-    size_t cap;
-    size_t n;
-    int64_t sum;
-    uint32_t n_chunks;
-    uint32_t n_dropped;
-    int state;
-    uint32_t dead_samples;
-    uint32_t align_samples;
-    uint32_t merge_samples;
-    size_t half_max;
-    size_t half[MD_WAVELET_SCALES_MAX];
-    double taps[MD_WAVELET_SCALES_MAX][SD_TAPS_MAX];
-    uint32_t hist[SD_HIST_BINS];
+    int phase;
+    md_status_t status;
+    uint32_t warm_target;
+    uint32_t warm_n;
+    uint32_t replay_pos;
+    int64_t warm_sum;
+    uint32_t n;             /* samples processed online */
+    /* amplitude detector */
+    int32_t thr_lo;
+    int32_t thr_hi;
+    bool above_prev;
+    /* wavelet bank */
+    unsigned ns;
+    uint32_t box[MD_WAVELET_SCALES_MAX];
+    uint32_t lag[MD_WAVELET_SCALES_MAX];
+    uint32_t dmax;
+    uint32_t c_first;
+    double knorm[MD_WAVELET_SCALES_MAX];
+    uint32_t lo_i[MD_WAVELET_SCALES_MAX];
+    uint32_t hard_i[MD_WAVELET_SCALES_MAX];
+    uint32_t dth_i[MD_WAVELET_SCALES_MAX];
+    double sigma_c[MD_WAVELET_SCALES_MAX];
+    double hard_c[MD_WAVELET_SCALES_MAX];
+    uint64_t sum_sig[MD_WAVELET_SCALES_MAX];
+    uint32_t hits[MD_WAVELET_SCALES_MAX];
+    uint32_t n_coefs;
+    uint32_t next_refine;
+    uint32_t p1;
+    uint32_t p2;
+    uint32_t p2ring[SD_P2_RING];
+    bool in_run;
+    uint32_t run_start;
+    bool grp_open;
+    uint32_t grp_first;
+    uint32_t grp_last;
+    uint32_t merge;
+    /* candidates, merging, commit */
+    uint32_t cand[SD_CAND_MAX];
+    uint32_t cand_head;
+    uint32_t cand_count;
+    uint32_t before;
+    uint32_t after;
+    uint32_t dedupe;
+    bool has_pend;
+    uint32_t pend_t;
+    uint32_t due;
     rs_hist_t rs;
-} sd_detector_t;
+    sd_events_t ev;
+    int16_t buf[SD_WARMUP_MAX];  /* warm-up samples; its first SD_RING_SAMPLES are the delay line */
+} sd_stream_t;
 
 /// Fills `cfg` with the defaults for `method` at `sample_rate_hz`:
 /// align 0.5 ms, k 4.0, dead time 1.0 ms, negative polarity, Mexican hat,
-/// widths 0.5..1.0 ms at 4 scales, L = 0.05 (slightly conservative; see docs/detector.md).
+/// widths 0.5..1.0 ms at 2 scales, L = 0.05 (slightly conservative), warm-up
+/// 250 ms, nominal interval 10 s, refinement on (see docs/detector.md).
 void sd_config_default(sd_config_t *cfg, sd_method_t method, uint32_t sample_rate_hz);
 
-/// Validates `cfg`, builds the filter bank and binds the caller's interval
+/// Validates `cfg` (MD_E_ARG on an invalid parameter, including a wavelet
+/// wider than SD_BOX_MAX, a warm-up longer than SD_WARMUP_MAX, or delays
+/// that would not fit the delay line) and starts the first interval. O(scales * box).
+md_status_t sd_stream_init(sd_stream_t *st, const sd_config_t *cfg);
+
+/// Starts a new interval with the same configuration. O(1).
+md_status_t sd_stream_restart(sd_stream_t *st);
+
+/// Feeds samples in stream order and processes at most up to the next
+/// multiple of SD_STEP_SAMPLES of the online sample index; *used receives
+/// the number of input samples consumed (possibly 0 while the warm-up is
+/// replayed: call again, with the same remaining input, until
+/// sd_stream_busy() is false and the input is used up). MD_E_DEGENERATE
+/// once the warm-up turned out flat (no noise); MD_E_STATE after the end.
+/// O(n * scales).
+md_status_t sd_stream_push(sd_stream_t *st, const int16_t *x, size_t n, size_t *used);
+
+/// True while warm-up samples wait to be replayed.
+bool sd_stream_busy(const sd_stream_t *st);
+
+/// Marks the end of the input. If the interval ended inside the warm-up the
+/// statistics are computed from what arrived (SD_FLAG_SHORT) and a replay
+/// starts: drive it with sd_stream_push(st, NULL, 0, &used) until
+/// sd_stream_busy() is false, then call sd_stream_finish(). O(warm-up).
+md_status_t sd_stream_end(sd_stream_t *st);
+
+/// Flushes runs, candidates and the last event after sd_stream_end(); the
+/// events are then final (sd_stream_events()). MD_E_DEGENERATE if the
+/// interval was too short or flat. O(SD_CAND_MAX * align).
+md_status_t sd_stream_finish(sd_stream_t *st);
+
+/// Events committed so far (final: a committed event never changes). Valid
+/// until sd_stream_restart(). NULL if st is NULL.
+const sd_events_t *sd_stream_events(const sd_stream_t *st);
+
+/// Samples processed online so far (the delay line holds the last
+/// SD_RING_SAMPLES of them).
+uint32_t sd_stream_processed(const sd_stream_t *st);
+
+/// Lower bound on the time of every event not yet committed: events with
+/// t < horizon are all in sd_stream_events() except at most the pending one
+/// (*pend_t, *has_pend), which can only move later. UINT32_MAX after finish.
+uint32_t sd_stream_horizon(const sd_stream_t *st, bool *has_pend, uint32_t *pend_t);
+
+/// Copies raw samples [start, start + len) from the delay line into dst.
+/// MD_E_ARG if any of them is not (or no longer) in it. O(len).
+md_status_t sd_stream_copy(const sd_stream_t *st, uint32_t start, size_t len, int16_t *dst);
+
+/// Read-only view of a sample history: x[i & mask] for lo <= i < hi. The
+/// delay line is a ring (mask = SD_RING_SAMPLES - 1); a linear interval
+/// buffer has mask = UINT32_MAX and lo = 0.
+typedef struct {
+    const int16_t *x;
+    uint32_t mask;
+    uint32_t lo;
+    uint32_t hi;
+} sd_view_t;
+
+/// The delay line as a view.
+sd_view_t sd_stream_view(const sd_stream_t *st);
+
+/// Index of the first minimum of the view over [lo, hi] (clamped to the
+/// view); lo if the range is empty. O(hi - lo).
+uint32_t sd_view_argmin(const sd_view_t *v, uint32_t lo, uint32_t hi);
+
+/* ---- offline convenience path (round one API, wrapper over sd_stream_t) ---- */
+
+/// Detector with an interval copy. Caller-owned; treat members as private.
+typedef struct {
+    sd_stream_t s;
+    int16_t *buf;
+    size_t cap;
+    size_t n;
+    uint32_t n_dropped;
+    int state;
+} sd_detector_t;
+
+/// OFFLINE CONVENIENCE PATH. Validates `cfg` and binds the caller's interval
 /// buffer `buf` of `cap` samples (1..SD_MAX_INTERVAL_SAMPLES), which must
-/// outlive the detector. MD_E_ARG on an invalid parameter (including a
-/// wavelet wider than SD_TAPS_MAX at this sample rate). O(scales * taps).
+/// outlive the detector. MD_E_ARG on an invalid parameter.
 md_status_t sd_init(sd_detector_t *det, const sd_config_t *cfg, int16_t *buf, size_t cap);
 
-/// Starts a new interval with the same configuration and buffer. O(1).
+/// OFFLINE CONVENIENCE PATH. Starts a new interval. O(1).
 md_status_t sd_restart(sd_detector_t *det);
 
-/// Appends a chunk of samples in stream order. n == 0 is allowed. If the
-/// buffer fills, the samples that fit are kept, the rest are counted as
-/// dropped and MD_E_CAPACITY is returned (sd_finish then sets
-/// SD_FLAG_TRUNCATED). MD_E_STATE after sd_finish(). O(n).
+/// OFFLINE CONVENIENCE PATH. Copies a chunk into the buffer and streams it
+/// into the detector. If the buffer fills, the samples that fit are kept,
+/// the rest are counted as dropped and MD_E_CAPACITY is returned (sd_finish
+/// then sets SD_FLAG_TRUNCATED). MD_E_STATE after sd_finish(). O(n).
 md_status_t sd_push(sd_detector_t *det, const int16_t *samples, size_t n);
 
-/// Runs detection over the buffered interval and fills `ev`.
-/// MD_E_DEGENERATE if the interval is too short for the filters or its noise
-/// level is zero (a flat channel); MD_E_STATE if called twice.
-/// Cost: threshold O(N); wavelet O(N * taps * scales) in 4 passes per scale.
+/// OFFLINE CONVENIENCE PATH. Ends the interval and copies the events into
+/// `ev`. MD_E_DEGENERATE if the interval is too short for the filters or
+/// its noise level is zero (a flat channel); MD_E_STATE if called twice.
 md_status_t sd_finish(sd_detector_t *det, sd_events_t *ev);
 
-/// The buffered samples of the current interval and their count (NULL if
-/// `det` is NULL). Valid until sd_restart().
+/// OFFLINE CONVENIENCE PATH. The buffered samples of the current interval
+/// and their count (NULL if `det` is NULL). Valid until sd_restart().
 const int16_t *sd_samples(const sd_detector_t *det, size_t *n);
 
 #endif
