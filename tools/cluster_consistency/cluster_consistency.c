@@ -21,7 +21,8 @@
 /// row per (neuron, interval) with the squared change of the neuron's true
 /// mean waveform projected into B^k: the data to calibrate q on held-out seeds.
 ///
-/// usage: cluster-consistency DIR [--channel C] [--q-uv Q] [--drift] [--no-header]
+/// usage: cluster-consistency DIR [--channel C] [--q-uv Q] [--map-evidence laplace|bic]
+///                            [--drift] [--clusters] [--no-header]
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -52,6 +53,8 @@ typedef struct {
     double q_uv;
     int drift;
     int header;
+    int clusters;   ///< --clusters: composition of every chosen cluster on stderr
+    int map_bic;    ///< --map-evidence bic: MAP with BIC instead of Laplace (diagnostic)
 } cc_options_t;
 
 /// One processed interval (signal chain output plus truth labels).
@@ -257,6 +260,38 @@ typedef struct {
     double acc;
 } cc_choice_t;
 
+/// stderr rows `k,method,g,n,mean_y0,mean_y1,false,top_neuron,top_count`:
+/// what each chosen cluster is made of (detections matching no truth spike = false).
+static void print_clusters(uint32_t k, const char *method, const cluster_result_t *r, const cc_interval_data_t *d)
+{
+    static uint32_t cnt[EM_G_MAX + 1u][CC_MAX_NEURONS + 1u];
+    if (r->best_g == 0u) {
+        return;
+    }
+    const cluster_model_t *m = &r->model[r->best_g - 1u];
+    memset(cnt, 0, sizeof cnt);
+    for (size_t i = 0u; i < d->spk.n; ++i) {
+        const uint32_t u = (d->truth_of[i] >= 0) ? (uint32_t)d->truth_of[i] : CC_MAX_NEURONS;
+        cnt[m->labels[i]][u]++;
+    }
+    for (size_t g = 0u; g <= r->best_g; ++g) {
+        uint32_t n = 0u;
+        uint32_t top = 0u;
+        uint32_t top_u = 0u;
+        for (uint32_t u = 0u; u <= CC_MAX_NEURONS; ++u) {
+            n += cnt[g][u];
+            if ((u < CC_MAX_NEURONS) && (cnt[g][u] > top)) {
+                top = cnt[g][u];
+                top_u = u;
+            }
+        }
+        const double y0 = (g > 0u) ? m->fit.params.mean[g - 1u][0] : 0.0;
+        const double y1 = (g > 0u) ? m->fit.params.mean[g - 1u][1] : 0.0;
+        (void)fprintf(stderr, "%u,%s,%zu,%u,%.1f,%.1f,%u,%u,%u\n", k, method, g, n, y0, y1, cnt[g][CC_MAX_NEURONS],
+                      top_u, top);
+    }
+}
+
 static cc_choice_t choose(const cluster_result_t *r, const cc_interval_data_t *d)
 {
     cc_choice_t c = {0u, 0.0, 0.0};
@@ -289,6 +324,7 @@ static void cluster_interval(const cc_options_t *o, const cc_interval_data_t *cu
     *n_targets = ms->have ? make_targets(prev, ms, o->q_uv, tg) : 0u;
     cluster_input_t in = {{cur->y, cur->spk.n, CC_D}, xi, tg, *n_targets, have_prior ? prior : NULL};
     cluster_config_default(&cfg, CLUSTER_MAP);
+    cfg.evidence = o->map_bic ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
     (void)cluster_fit_models(&cfg, &in, &cws, &res_map);
     *map = choose(&res_map, cur);
     if (res_map.best_g > 0u) {
@@ -374,6 +410,13 @@ static int parse_args(int argc, char **argv, cc_options_t *o)
             }
         } else if (strcmp(argv[i], "--drift") == 0) {
             o->drift = 1;
+        } else if ((strcmp(argv[i], "--map-evidence") == 0) && (i + 1 < argc)) {
+            o->map_bic = (strcmp(argv[++i], "bic") == 0);
+            if (!o->map_bic && (strcmp(argv[i], "laplace") != 0)) {
+                return -1;
+            }
+        } else if (strcmp(argv[i], "--clusters") == 0) {
+            o->clusters = 1;
         } else if (strcmp(argv[i], "--no-header") == 0) {
             o->header = 0;
         } else {
@@ -424,6 +467,10 @@ static int run(const cc_options_t *o, const cc_recording_t *rec, const cc_truth_
         cc_choice_t ml;
         size_t n_targets = 0u;
         cluster_interval(o, cur, prev, &ms, &map, &ml, &n_targets);
+        if (o->clusters) {
+            print_clusters(k, "map", &res_map, cur);
+            print_clusters(k, "ml", &res_ml, cur);
+        }
         print_row(rec, o, k, cur, &map, &ml, n_targets);
         if (k > 0u) { /* Ψ of §3.5.2 */
             psi_map += labs((long)map.g - (long)g_prev_map);
@@ -443,7 +490,8 @@ int main(int argc, char **argv)
 {
     cc_options_t o;
     if (parse_args(argc, argv, &o) != 0) {
-        (void)fprintf(stderr, "usage: cluster-consistency DIR [--channel C] [--q-uv Q] [--drift] [--no-header]\n");
+        (void)fprintf(stderr, "usage: cluster-consistency DIR [--channel C] [--q-uv Q] [--map-evidence laplace|bic]\n"
+                              "                           [--drift] [--clusters] [--no-header]\n");
         return 2;
     }
     static cc_recording_t rec;
