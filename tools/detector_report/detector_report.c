@@ -131,7 +131,8 @@ int main(int argc, char **argv)
 {
     sd_config_t defaults;
     sd_config_default(&defaults, SD_METHOD_WAVELET, 20000u);
-    opts_t o = {10.0, 5u, 20.0, 20000u, 0, 2.0, 8.0, defaults.k_sigma, defaults.cost_ratio_l, 0,
+    opts_t o = {10.0, 5u, 20.0, 20000u, 0, 2.0, 8.0, defaults.k_sigma, defaults.cost_ratio_l,
+                (defaults.wavelet == SD_WAVELET_DOG1) ? 1 : 0,
                 defaults.n_scales, defaults.refine ? 1 : 0, defaults.warmup_ms};
     if (parse(argc, argv, &o) != 0) {
         fprintf(stderr, "usage: %s [--seconds S] [--seeds N] [--rate-hz R] [--fs HZ] [--noise white|band] "

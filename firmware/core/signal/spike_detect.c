@@ -24,7 +24,6 @@
 #define SD_NONE 0xFFFFFFFFu
 
 #define SD_RING_MASK (SD_RING_SAMPLES - 1u)
-#define SD_P2_MASK (SD_P2_RING - 1u)
 
 void sd_config_default(sd_config_t *cfg, sd_method_t method, uint32_t sample_rate_hz)
 {
@@ -37,7 +36,7 @@ void sd_config_default(sd_config_t *cfg, sd_method_t method, uint32_t sample_rat
     cfg->k_sigma = 4.0;
     cfg->dead_time_ms = 1.0;
     cfg->polarity = SD_POLARITY_NEG;
-    cfg->wavelet = SD_WAVELET_MEXHAT;
+    cfg->wavelet = SD_WAVELET_DOG1;
     cfg->width_min_ms = 0.5;
     cfg->width_max_ms = 1.0;
     cfg->n_scales = 2u;
@@ -148,8 +147,11 @@ static md_status_t sd_setup(sd_stream_t *st)
             st->dmax = (delay[s] > st->dmax) ? delay[s] : st->dmax;
             first = (fv > first) ? fv : first;
         }
+        const uint32_t span = (c->wavelet == SD_WAVELET_MEXHAT) ? 4u : 3u;
         for (unsigned s = 0u; s < st->ns; ++s) {
             st->lag[s] = st->dmax - delay[s];
+            const uint32_t need = st->lag[s] + span * st->box[s];
+            st->hist_len = (need > st->hist_len) ? need : st->hist_len;
         }
         st->c_first = first;
     }
@@ -181,7 +183,7 @@ static void sd_reset(sd_stream_t *st)
     st->due = SD_NONE;
     memset(st->sum_sig, 0, sizeof st->sum_sig);
     memset(st->hits, 0, sizeof st->hits);
-    memset(st->p2ring, 0, sizeof st->p2ring);
+    memset(st->p2lin, 0, sizeof st->p2lin);
     memset(&st->ev, 0, sizeof st->ev);
 }
 
@@ -371,30 +373,136 @@ static void sd_scale_decision(sd_stream_t *st, unsigned s, uint64_t sum, uint32_
     st->ev.scale_dth[s] = dth / st->knorm[s];
 }
 
-/* Coefficient magnitudes of every scale at centre n - dmax, from the P2 ring
- * that holds P2 up to sample n. Sign in *neg (bit s). */
-static void sd_coefs(const sd_stream_t *st, uint32_t n, uint32_t *mag, uint32_t *neg)
+/* Signed coefficient (two's complement in a uint32) of scale s whose newest
+ * P2 tap is ring slot `slot`: the 4th (3rd) w-difference of P2. */
+static uint32_t sd_coef_at(const uint32_t *q, uint32_t w, bool mexhat)
 {
-    const uint32_t *r = st->p2ring;
-    *neg = 0u;
-    for (unsigned s = 0u; s < st->ns; ++s) {
-        const uint32_t i0 = n - st->lag[s];
-        const uint32_t w = st->box[s];
-        uint32_t a;
-        if (st->cfg.wavelet == SD_WAVELET_MEXHAT) {
-            a = r[i0 & SD_P2_MASK] - 4u * r[(i0 - w) & SD_P2_MASK] + 6u * r[(i0 - 2u * w) & SD_P2_MASK] -
-                4u * r[(i0 - 3u * w) & SD_P2_MASK] + r[(i0 - 4u * w) & SD_P2_MASK];
-        } else {
-            a = r[i0 & SD_P2_MASK] - 3u * r[(i0 - w) & SD_P2_MASK] + 3u * r[(i0 - 2u * w) & SD_P2_MASK] -
-                r[(i0 - 3u * w) & SD_P2_MASK];
-        }
-        const bool is_neg = (a & 0x80000000u) != 0u;
-        mag[s] = is_neg ? (0u - a) : a;
-        *neg |= is_neg ? (1u << s) : 0u;
-    }
+    return mexhat ? (q[4u * w] - 4u * q[3u * w] + 6u * q[2u * w] - 4u * q[w] + q[0])
+                  : (q[3u * w] - 3u * q[2u * w] + 3u * q[w] - q[0]);
 }
 
-typedef enum { SD_PASS_MOMENTS, SD_PASS_COARSE, SD_PASS_FINE, SD_PASS_HITS } sd_pass_t;
+/* Oldest tap of scale s for the centre whose newest sample is step index i. */
+static const uint32_t *sd_taps(const sd_stream_t *st, unsigned s, uint32_t i)
+{
+    const uint32_t span = (st->cfg.wavelet == SD_WAVELET_MEXHAT) ? 4u : 3u;
+    return &st->p2lin[SD_P2_HIST + i - st->lag[s] - span * st->box[s]];
+}
+
+static uint32_t sd_abs_u32(uint32_t c)
+{
+    return ((c & 0x80000000u) != 0u) ? (0u - c) : c;
+}
+
+typedef enum { SD_PASS_MOMENTS, SD_PASS_COARSE, SD_PASS_FINE } sd_pass_t;
+
+/* Slow path of one coefficient above the lower of the two thresholds:
+ * counts it for M and P(spike) if above the hard threshold, and says
+ * whether it exceeds the decision threshold. */
+static uint32_t sd_scale_hit(sd_stream_t *st, unsigned s, uint32_t c)
+{
+    const uint32_t mag = sd_abs_u32(c);
+    if (mag > st->hard_i[s]) {
+        st->hits[s]++;
+        st->sum_sig[s] += mag;
+    }
+    return (mag > st->dth_i[s]) ? 1u : 0u;
+}
+
+/* Running sums of x[0..k) (online indices n0..n0+k-1) into the P2 ring, and
+ * the raw samples into the delay line if `ring`. */
+static void sd_block_sums(sd_stream_t *st, const int16_t *x, uint32_t n0, uint32_t k, bool ring)
+{
+    uint32_t p1 = st->p1, p2 = st->p2;
+    uint32_t *out = &st->p2lin[SD_P2_HIST];
+    for (uint32_t i = 0u; i < k; ++i) {
+        const int32_t xv = x[i];
+        p1 += (uint32_t)xv;
+        p2 += p1;
+        out[i] = p2;
+    }
+    if (ring) {
+        for (uint32_t i = 0u; i < k; ++i) {
+            st->buf[(n0 + i) & SD_RING_MASK] = x[i];
+        }
+    }
+    st->p1 = p1;
+    st->p2 = p2;
+}
+
+/* Keeps the last hist_len running sums as history for the next step. */
+static void sd_block_shift(sd_stream_t *st, uint32_t k)
+{
+    const uint32_t h = st->hist_len;
+    memmove(&st->p2lin[SD_P2_HIST - h], &st->p2lin[SD_P2_HIST - h + k], h * sizeof st->p2lin[0]);
+}
+
+/* Bit i set if the centre of sample n0 + i (i0 <= i < k <= 32) fires scale s.
+ * The hot loop: 5 loads and 5 integer operations per coefficient, and
+ * |c| > lo tested as (c + lo) > 2 lo in unsigned arithmetic (lo < 2^31). */
+static uint32_t sd_block_scale(sd_stream_t *st, unsigned s, uint32_t i0, uint32_t k)
+{
+    const uint32_t lo = st->lo_i[s];
+    if (lo >= 0x7FFFFFFFu) {
+        return 0u; /* flat scale */
+    }
+    const uint32_t lo2 = 2u * lo;
+    const uint32_t w = st->box[s];
+    const uint32_t *q0 = sd_taps(st, s, 0u);
+    const uint32_t *q1 = q0 + w;
+    const uint32_t *q2 = q1 + w;
+    const uint32_t *q3 = q2 + w;
+    uint32_t mask = 0u;
+    if (st->cfg.wavelet == SD_WAVELET_MEXHAT) {
+        const uint32_t *q4 = q3 + w;
+        for (uint32_t i = i0; i < k; ++i) {
+            const uint32_t c = (q4[i] + q0[i]) - 4u * (q3[i] + q1[i]) + 6u * q2[i];
+            if (c + lo > lo2) {
+                mask |= sd_scale_hit(st, s, c) << i;
+            }
+        }
+    } else {
+        for (uint32_t i = i0; i < k; ++i) {
+            const uint32_t c = (q3[i] - q0[i]) - 3u * (q2[i] - q1[i]);
+            if (c + lo > lo2) {
+                mask |= sd_scale_hit(st, s, c) << i;
+            }
+        }
+    }
+    return mask;
+}
+
+/* First step-local index whose centre has a full kernel. */
+static uint32_t sd_block_first(const sd_stream_t *st, uint32_t n0, uint32_t k)
+{
+    const uint32_t first = st->dmax + st->c_first;
+    if (n0 >= first) {
+        return 0u;
+    }
+    return (first - n0 < k) ? (first - n0) : k;
+}
+
+/* M and P(spike) over every warm-up coefficient (hard threshold only). */
+static void sd_warm_hits(sd_stream_t *st)
+{
+    st->p1 = 0u;
+    st->p2 = 0u;
+    st->n_coefs = 0u;
+    memset(st->p2lin, 0, sizeof st->p2lin);
+    for (unsigned s = 0u; s < st->ns; ++s) {
+        st->dth_i[s] = SD_NONE;
+        st->lo_i[s] = st->hard_i[s];
+    }
+    for (uint32_t n0 = 0u; n0 < st->warm_n; n0 += SD_STEP_SAMPLES) {
+        const uint32_t k = ((st->warm_n - n0) < SD_STEP_SAMPLES) ? (st->warm_n - n0) : SD_STEP_SAMPLES;
+        sd_block_sums(st, &st->buf[n0], n0, k, false);
+        const uint32_t i0 = sd_block_first(st, n0, k);
+        for (unsigned s = 0u; s < st->ns; ++s) {
+            (void)sd_block_scale(st, s, i0, k);
+        }
+        st->n_coefs += k - i0;
+        sd_block_shift(st, k);
+    }
+}
 
 typedef struct {
     int64_t sum[MD_WAVELET_SCALES_MAX];
@@ -404,64 +512,76 @@ typedef struct {
     uint32_t count;
 } sd_warm_t;
 
-/* One pass over the warm-up coefficients (every valid centre). For the
- * histogram passes only scale `s` is binned; `coarse` selects the fine bin. */
-static void sd_warm_pass(sd_stream_t *st, sd_pass_t pass, unsigned s, uint32_t coarse, sd_warm_t *w)
+/* One pass over every SD_SIGMA_STRIDE-th warm-up coefficient of scale s
+ * (all scales for the moments). The histogram passes bin |c - mean| >> shift;
+ * the fine pass bins the low byte inside coarse bins b1 (rs) and b2 (rs2). */
+static void sd_warm_bin(sd_stream_t *st, sd_pass_t pass, unsigned j, uint32_t a, const size_t *bins, sd_warm_t *w)
 {
-    uint32_t p1 = 0u, p2 = 0u;
-    uint32_t mag[MD_WAVELET_SCALES_MAX];
-    uint32_t neg = 0u;
-    memset(st->p2ring, 0, sizeof st->p2ring);
-    memset(st->rs.bins, 0, sizeof st->rs.bins);
-    w->count = 0u;
-    for (uint32_t n = 0u; n < st->warm_n; ++n) {
-        const int32_t xv = st->buf[n];
-        p1 += (uint32_t)xv;
-        p2 += p1;
-        st->p2ring[n & SD_P2_MASK] = p2;
-        if (n < st->dmax + st->c_first) {
-            continue; /* centre n - dmax before the first full kernel */
-        }
-        sd_coefs(st, n, mag, &neg);
-        w->count++;
-        for (unsigned j = 0u; j < st->ns; ++j) {
-            const int64_t c = ((neg >> j) & 1u) ? -(int64_t)mag[j] : (int64_t)mag[j];
-            if (pass == SD_PASS_MOMENTS) {
-                w->sum[j] += c;
-                w->maxabs[j] = (mag[j] > w->maxabs[j]) ? mag[j] : w->maxabs[j];
-            } else if (pass == SD_PASS_HITS) {
-                if (mag[j] > st->hard_i[j]) {
-                    st->hits[j]++;
-                    st->sum_sig[j] += mag[j];
-                }
-            } else if (j == s) {
-                const int64_t d = c - w->mean[j];
-                const uint32_t u = (uint32_t)((uint64_t)((d < 0) ? -d : d) >> w->shift[j]);
-                if (pass == SD_PASS_COARSE) {
-                    st->rs.bins[u >> 8u]++;
-                } else if ((u >> 8u) == coarse) {
-                    st->rs.bins[u & 0xFFu]++;
-                } else {
-                    /* other coarse bins do not matter for this rank */
-                }
-            } else {
-                /* other scales are binned in their own passes */
-            }
-        }
+    const uint32_t mag = sd_abs_u32(a);
+    const int64_t c = ((a & 0x80000000u) != 0u) ? -(int64_t)mag : (int64_t)mag;
+    if (pass == SD_PASS_MOMENTS) {
+        w->sum[j] += c;
+        w->maxabs[j] = (mag > w->maxabs[j]) ? mag : w->maxabs[j];
+        return;
+    }
+    const int64_t d = c - w->mean[j];
+    const uint32_t u = (uint32_t)((uint64_t)((d < 0) ? -d : d) >> w->shift[j]);
+    if (pass == SD_PASS_COARSE) {
+        st->rs.bins[u >> 8u]++;
+    } else {
+        st->rs.bins[u & 0xFFu] += ((u >> 8u) == bins[0]) ? 1u : 0u;
+        st->rs2.bins[u & 0xFFu] += ((u >> 8u) == bins[1]) ? 1u : 0u;
     }
 }
 
-/* Exact value (to 2^shift counts) of rank k of |c - mean| for scale s. */
-static double sd_warm_rank(sd_stream_t *st, unsigned s, uint64_t k, sd_warm_t *w)
+static void sd_warm_pass(sd_stream_t *st, sd_pass_t pass, unsigned s, const size_t *bins, sd_warm_t *w)
 {
-    uint64_t before = 0u, before_fine = 0u;
-    sd_warm_pass(st, SD_PASS_COARSE, s, 0u, w);
-    const size_t coarse = rs_rank_bin(st->rs.bins, RS_LEVEL_BINS, k, &before);
-    sd_warm_pass(st, SD_PASS_FINE, s, (uint32_t)coarse, w);
-    const size_t fine = rs_rank_bin(st->rs.bins, RS_LEVEL_BINS, k - before, &before_fine);
-    const double v = (double)((coarse << 8u) | fine);
-    /* a value v of the shifted integer stands for [v, v+1) * 2^shift */
-    return (w->shift[s] == 0u) ? v : ((v + 0.5) * ldexp(1.0, (int)w->shift[s]));
+    const bool mexhat = (st->cfg.wavelet == SD_WAVELET_MEXHAT);
+    const uint32_t first = st->dmax + st->c_first;
+    st->p1 = 0u;
+    st->p2 = 0u;
+    memset(st->p2lin, 0, sizeof st->p2lin);
+    memset(st->rs.bins, 0, sizeof st->rs.bins);
+    memset(st->rs2.bins, 0, sizeof st->rs2.bins);
+    w->count = 0u;
+    for (uint32_t n0 = 0u; n0 < st->warm_n; n0 += SD_STEP_SAMPLES) {
+        const uint32_t k = ((st->warm_n - n0) < SD_STEP_SAMPLES) ? (st->warm_n - n0) : SD_STEP_SAMPLES;
+        sd_block_sums(st, &st->buf[n0], n0, k, false);
+        for (uint32_t i = sd_block_first(st, n0, k); i < k; ++i) {
+            if (((n0 + i - first) % SD_SIGMA_STRIDE) != 0u) {
+                continue;
+            }
+            w->count++;
+            for (unsigned j = 0u; j < st->ns; ++j) {
+                if ((pass == SD_PASS_MOMENTS) || (j == s)) {
+                    sd_warm_bin(st, pass, j, sd_coef_at(sd_taps(st, j, i), st->box[j], mexhat), bins, w);
+                }
+            }
+        }
+        sd_block_shift(st, k);
+    }
+}
+
+/* Exact median (to 2^shift counts) of |c - mean| for scale s: one coarse pass
+ * locates both middle ranks, one fine pass resolves them. */
+static double sd_warm_median(sd_stream_t *st, unsigned s, sd_warm_t *w)
+{
+    const uint64_t total = w->count;
+    const uint64_t k[2] = {(total - 1u) / 2u, total / 2u};
+    uint64_t before[2] = {0u, 0u};
+    size_t bins[2];
+    sd_warm_pass(st, SD_PASS_COARSE, s, NULL, w);
+    bins[0] = rs_rank_bin(st->rs.bins, RS_LEVEL_BINS, k[0], &before[0]);
+    bins[1] = rs_rank_bin(st->rs.bins, RS_LEVEL_BINS, k[1], &before[1]);
+    sd_warm_pass(st, SD_PASS_FINE, s, bins, w);
+    double v = 0.0;
+    for (unsigned r = 0u; r < 2u; ++r) {
+        const size_t fine = rs_rank_bin((r == 0u) ? st->rs.bins : st->rs2.bins, RS_LEVEL_BINS, k[r] - before[r], NULL);
+        const double u = (double)((bins[r] << 8u) | fine);
+        /* a shifted value u stands for [u, u+1) * 2^shift */
+        v += 0.5 * ((w->shift[s] == 0u) ? u : ((u + 0.5) * ldexp(1.0, (int)w->shift[s])));
+    }
+    return v;
 }
 
 /* Per-scale statistics of Nenadic & Burdick on the warm-up: sigma =
@@ -472,7 +592,7 @@ static int sd_wavelet_stats(sd_stream_t *st)
 {
     sd_warm_t w;
     memset(&w, 0, sizeof w);
-    sd_warm_pass(st, SD_PASS_MOMENTS, 0u, 0u, &w);
+    sd_warm_pass(st, SD_PASS_MOMENTS, 0u, NULL, &w);
     const uint64_t total = w.count;
     const double n_nom = fmax(st->cfg.interval_s * (double)st->cfg.sample_rate_hz, (double)total + 2.0);
     int any = 0;
@@ -483,7 +603,7 @@ static int sd_wavelet_stats(sd_stream_t *st)
         for (unsigned k = 0u; (k < 32u) && ((range >> w.shift[s]) > 0xFFFFu); ++k) {
             w.shift[s]++;
         }
-        const double med = 0.5 * (sd_warm_rank(st, s, (total - 1u) / 2u, &w) + sd_warm_rank(st, s, total / 2u, &w));
+        const double med = sd_warm_median(st, s, &w);
         st->sigma_c[s] = med / SD_MAD_TO_SIGMA;
         st->hard_c[s] = st->sigma_c[s] * sqrt(2.0 * log(n_nom));
         st->hard_i[s] = (uint32_t)fmin(st->hard_c[s], 4.0e9);
@@ -500,16 +620,19 @@ static int sd_wavelet_stats(sd_stream_t *st)
     if (!any) {
         return 0;
     }
-    sd_warm_pass(st, SD_PASS_HITS, 0u, 0u, &w);
+    sd_warm_hits(st);
     for (unsigned s = 0u; s < st->ns; ++s) {
         if (st->sigma_c[s] > 0.0) {
-            sd_scale_decision(st, s, st->sum_sig[s], st->hits[s], w.count);
+            sd_scale_decision(st, s, st->sum_sig[s], st->hits[s], st->n_coefs);
         }
     }
     /* the online pass (replay included) recounts from zero */
     memset(st->sum_sig, 0, sizeof st->sum_sig);
     memset(st->hits, 0, sizeof st->hits);
-    memset(st->p2ring, 0, sizeof st->p2ring);
+    memset(st->p2lin, 0, sizeof st->p2lin);
+    st->p1 = 0u;
+    st->p2 = 0u;
+    st->n_coefs = 0u;
     return 1;
 }
 
@@ -655,39 +778,32 @@ static void sd_step_threshold(sd_stream_t *st, const int16_t *x, uint32_t k)
     }
 }
 
+/* One step (k <= SD_STEP_SAMPLES samples, never across a multiple of it):
+ * coefficients of every scale into a hit mask, then the run logic only if
+ * something fired or a run is open. */
 static void sd_step_wavelet(sd_stream_t *st, const int16_t *x, uint32_t k)
 {
-    uint32_t mag[MD_WAVELET_SCALES_MAX];
-    uint32_t neg = 0u;
-    const uint32_t first = st->dmax + st->c_first;
-    for (uint32_t i = 0u; i < k; ++i) {
-        const uint32_t n = st->n;
-        st->buf[n & SD_RING_MASK] = x[i];
-        const int32_t xv = x[i];
-        st->p1 += (uint32_t)xv;
-        st->p2 += st->p1;
-        st->p2ring[n & SD_P2_MASK] = st->p2;
-        st->n = n + 1u;
-        if (n >= first) {
-            sd_coefs(st, n, mag, &neg);
-            st->n_coefs++;
-            bool hit = false;
-            for (unsigned s = 0u; s < st->ns; ++s) {
-                if (mag[s] > st->lo_i[s]) { /* rare: above the lower of the two thresholds */
-                    if (mag[s] > st->hard_i[s]) {
-                        st->hits[s]++;
-                        st->sum_sig[s] += mag[s];
-                    }
-                    hit = hit || (mag[s] > st->dth_i[s]);
-                }
-            }
-            if ((hit != st->in_run) || (hit && (n - st->dmax - st->run_start >= SD_RUN_MAX))) {
-                sd_run_edge(st, n - st->dmax, hit);
+    const uint32_t n0 = st->n;
+    sd_block_sums(st, x, n0, k, true);
+    const uint32_t i0 = sd_block_first(st, n0, k);
+    uint32_t hits = 0u;
+    for (unsigned s = 0u; s < st->ns; ++s) {
+        hits |= sd_block_scale(st, s, i0, k);
+    }
+    sd_block_shift(st, k);
+    st->n_coefs += k - i0;
+    st->n = n0 + k;
+    if ((hits != 0u) || st->in_run) {
+        for (uint32_t i = i0; i < k; ++i) {
+            const bool hit = ((hits >> i) & 1u) != 0u;
+            const uint32_t c = n0 + i - st->dmax;
+            if ((hit != st->in_run) || (hit && (c - st->run_start >= SD_RUN_MAX))) {
+                sd_run_edge(st, c, hit);
             }
         }
-        if (st->n >= st->due) {
-            sd_service(st);
-        }
+    }
+    if (st->n >= st->due) {
+        sd_service(st);
     }
 }
 

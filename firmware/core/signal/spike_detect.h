@@ -47,18 +47,19 @@
 #define SD_MAX_INTERVAL_SAMPLES (1u << 24)  ///< longest interval accepted (14 min at 20 kHz)
 #define SD_WARMUP_MAX 8192u                 ///< warm-up buffer (0.41 s at 20 kHz, 0.27 s at 30 kHz)
 #define SD_RING_SAMPLES 2048u               ///< raw-sample delay line (power of two)
-#define SD_P2_RING 256u                     ///< ring of the second running sum (power of two)
-#define SD_BOX_MAX 48u                      ///< widest B-spline box (samples); support 4*box - 1
+#define SD_P2_HIST 192u                     ///< history of the second running sum kept between steps
+#define SD_BOX_MAX 32u                      ///< widest B-spline box (samples; 1 ms at 80 kHz); support 4*box - 1
 #define SD_STEP_SAMPLES 32u                 ///< sd_stream_push() stops at multiples of this sample index
 #define SD_CAND_MAX 64u                     ///< candidates waiting for their alignment look-ahead
 #define SD_ALIGN_MAX 128u                   ///< longest alignment search on either side (samples)
 #define SD_RUN_MAX 256u                     ///< a supra-threshold run longer than this is split
 #define SD_REFINE_SAMPLES 4096u             ///< refinement period of the wavelet statistics (samples)
+#define SD_SIGMA_STRIDE 2u                  ///< sigma from every 2nd warm-up coefficient (neighbours are correlated)
 
 _Static_assert(MD_WAVELET_SCALES_MAX >= 1u && MD_WAVELET_SCALES_MAX <= 16u, "1..16 wavelet scales");
 _Static_assert((SD_RING_SAMPLES & (SD_RING_SAMPLES - 1u)) == 0u, "ring size is a power of two");
-_Static_assert((SD_P2_RING & (SD_P2_RING - 1u)) == 0u, "ring size is a power of two");
-_Static_assert(SD_P2_RING > 4u * SD_BOX_MAX, "the widest kernel and its lag fit the running-sum ring");
+_Static_assert(SD_P2_HIST >= 4u * SD_BOX_MAX + 2u * SD_BOX_MAX, "the widest kernel and its lag fit the history");
+_Static_assert((SD_REFINE_SAMPLES % SD_STEP_SAMPLES) == 0u && SD_STEP_SAMPLES == 32u, "steps never straddle a refinement; one bit per step sample");
 _Static_assert(SD_WARMUP_MAX >= SD_RING_SAMPLES, "the delay line aliases the warm-up buffer");
 _Static_assert(4ull * SD_BOX_MAX * SD_BOX_MAX * 32768ull < 2147483648ull, "coefficients fit int32 exactly");
 _Static_assert(MD_MAX_SPIKES <= SD_MAX_INTERVAL_SAMPLES, "spike list indexes samples");
@@ -162,7 +163,8 @@ typedef struct {
     uint32_t next_refine;
     uint32_t p1;
     uint32_t p2;
-    uint32_t p2ring[SD_P2_RING];
+    uint32_t hist_len;
+    uint32_t p2lin[SD_P2_HIST + SD_STEP_SAMPLES];  /* P2 of the current step after SD_P2_HIST of history */
     bool in_run;
     uint32_t run_start;
     bool grp_open;
@@ -180,13 +182,15 @@ typedef struct {
     uint32_t pend_t;
     uint32_t due;
     rs_hist_t rs;
+    rs_hist_t rs2;
     sd_events_t ev;
     int16_t buf[SD_WARMUP_MAX];  /* warm-up samples; its first SD_RING_SAMPLES are the delay line */
 } sd_stream_t;
 
 /// Fills `cfg` with the defaults for `method` at `sample_rate_hz`:
-/// align 0.5 ms, k 4.0, dead time 1.0 ms, negative polarity, Mexican hat,
-/// widths 0.5..1.0 ms at 2 scales, L = 0.05 (slightly conservative), warm-up
+/// align 0.5 ms, k 4.0, dead time 1.0 ms, negative polarity,
+/// widths 0.5..1.0 ms at 2 scales of the first-difference (DOG1) B-spline
+/// wavelet, L = 0.05 (slightly conservative), warm-up
 /// 250 ms, nominal interval 10 s, refinement on (see docs/detector.md).
 void sd_config_default(sd_config_t *cfg, sd_method_t method, uint32_t sample_rate_hz);
 
