@@ -34,6 +34,7 @@ static const rx_rule_t RX_RULES[] = {
     {MD_CAN_ESTOP_FRAME_ID, MD_CAN_ESTOP_LENGTH, false, RX_CONSUME},
     {MD_CAN_NMT_FRAME_ID, MD_CAN_NMT_LENGTH, false, RX_CONSUME},
     {MD_CAN_SIM_CLOCK_FRAME_ID, MD_CAN_SIM_CLOCK_LENGTH, false, RX_CONSUME},
+    {MD_CAN_SIM_STEP_FRAME_ID, MD_CAN_SIM_STEP_LENGTH, false, RX_OWN},
     {MD_CAN_EMCY_CTRL_FRAME_ID, MD_CAN_EMCY_CTRL_LENGTH, false, RX_OWN},
     {MD_CAN_EMCY_ACT_FRAME_ID, MD_CAN_EMCY_ACT_LENGTH, false, RX_CONSUME},
     {MD_CAN_EMCY_HALL_FRAME_ID, MD_CAN_EMCY_HALL_LENGTH, false, RX_CONSUME},
@@ -426,12 +427,20 @@ static rx_result_t handle_hall_reading(md_node_t *node, const md_frame_t *f)
     return RX_OK;
 }
 
+/* Coefficients act on the normalised code x = (code - code_mid) / code_half;
+ * two extra indices carry code_mid and code_half (DBC comment on HALL_CALIB). */
 static rx_result_t handle_hall_calib(const md_frame_t *f)
 {
     struct md_can_hall_calib_t m;
     if (md_can_hall_calib_unpack(&m, f->data, f->len) != 0 || m.electrode >= MD_ELECTRODES ||
-        m.coeff_index >= m.coeff_count || !md_can_hall_calib_coeff_value_is_in_range(m.coeff_value)) {
+        !md_can_hall_calib_coeff_value_is_in_range(m.coeff_value)) {
         return RX_BAD_RANGE; /* is_in_range also rejects NaN and inf */
+    }
+    const bool coeff = m.coeff_index < m.coeff_count;
+    const bool mid = m.coeff_index == MD_HALL_CALIB_INDEX_CODE_MID;
+    const bool half = m.coeff_index == MD_HALL_CALIB_INDEX_CODE_HALF && m.coeff_value > 0.0f;
+    if (!coeff && !mid && !half) {
+        return RX_BAD_RANGE;
     }
     return RX_OK; /* stored by the position servo once it exists */
 }

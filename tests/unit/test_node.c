@@ -552,6 +552,29 @@ static void test_out_of_range_signals_rejected(void)
     TEST_ASSERT_EQUAL_UINT32(c0.rx_malformed + 6u, g_node.counters.rx_malformed);
 }
 
+static void test_hall_calib_normalisation_indices(void)
+{
+    boot();
+    uint8_t b[8];
+    struct md_can_hall_calib_t cal = {0u, MD_HALL_CALIB_INDEX_CODE_MID, 4u, 2048.0f};
+    md_frame_t f = frame_of(MD_CAN_HALL_CALIB_FRAME_ID, b, md_can_hall_calib_pack(b, &cal, sizeof b));
+    TEST_ASSERT_EQUAL_INT(MD_OK, rx(&f));
+    cal.coeff_index = MD_HALL_CALIB_INDEX_CODE_HALF;
+    f = frame_of(MD_CAN_HALL_CALIB_FRAME_ID, b, md_can_hall_calib_pack(b, &cal, sizeof b));
+    TEST_ASSERT_EQUAL_INT(MD_OK, rx(&f));
+    cal.coeff_value = 0.0f; /* code_half divides: must be > 0 */
+    f = frame_of(MD_CAN_HALL_CALIB_FRAME_ID, b, md_can_hall_calib_pack(b, &cal, sizeof b));
+    expect_rejected(&f);
+    cal.coeff_index = 3u;
+    cal.coeff_value = -1.5f;
+    f = frame_of(MD_CAN_HALL_CALIB_FRAME_ID, b, md_can_hall_calib_pack(b, &cal, sizeof b));
+    TEST_ASSERT_EQUAL_INT(MD_OK, rx(&f));
+    cal.coeff_index = 4u; /* == CoeffCount */
+    f = frame_of(MD_CAN_HALL_CALIB_FRAME_ID, b, md_can_hall_calib_pack(b, &cal, sizeof b));
+    expect_rejected(&f);
+    TEST_ASSERT_EQUAL_UINT32(2u, g_node.counters.rx_bad_range);
+}
+
 static md_frame_t hall(uint8_t e, uint8_t seq)
 {
     const struct md_can_hall_reading_t m = {e, seq, 1234u, 0u};
@@ -612,7 +635,9 @@ static void test_own_ids_from_others_are_conflicts(void)
     expect_rejected(&f);
     const md_frame_t hb = frame_of(MD_CAN_HEARTBEAT_CTRL_FRAME_ID, b, 8);
     expect_rejected(&hb);
-    TEST_ASSERT_EQUAL_UINT32(2u, g_node.counters.rx_id_conflict);
+    const md_frame_t step = frame_of(MD_CAN_SIM_STEP_FRAME_ID, b, 8);
+    expect_rejected(&step);
+    TEST_ASSERT_EQUAL_UINT32(3u, g_node.counters.rx_id_conflict);
 }
 
 static void test_protocol_emcy_is_inhibited(void)
@@ -688,6 +713,7 @@ int main(void)
     RUN_TEST(test_counters_readable_as_parameters);
     RUN_TEST(test_malformed_frames_counted_and_ignored);
     RUN_TEST(test_out_of_range_signals_rejected);
+    RUN_TEST(test_hall_calib_normalisation_indices);
     RUN_TEST(test_sequence_errors_counted_and_resynchronised);
     RUN_TEST(test_own_ids_from_others_are_conflicts);
     RUN_TEST(test_protocol_emcy_is_inhibited);
