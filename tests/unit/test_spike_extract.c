@@ -60,19 +60,22 @@ static void test_windows_are_aligned_and_edges_counted(void)
 
 static void test_noise_snippets_avoid_detections(void)
 {
-    for (size_t i = 0u; i < 4000u; ++i) {
+    /* 12000 samples, a detection every 100: with guard 20 and d_w 23, 37 % of
+     * the start positions are free; candidates come every 32 samples. */
+    for (size_t i = 0u; i < 12000u; ++i) {
         g_x[i] = (int16_t)((i % 5u) - 2u);
     }
     memset(&g_ev, 0, sizeof g_ev);
-    for (size_t k = 0u; k < 40u; ++k) { /* a detection every 100 samples */
+    for (size_t k = 0u; k < 120u; ++k) { /* a detection every 100 samples */
         g_ev.t[k] = (uint32_t)(50u + 100u * k);
     }
-    g_ev.n = 40u;
+    g_ev.n = 120u;
     sx_config_t cfg;
     sx_config_default(&cfg, FS_HZ);
     cfg.guard = 20u;
     cfg.n_noise = 100u;
-    TEST_ASSERT_EQUAL_INT(MD_OK, sx_extract_noise(g_x, 4000u, &g_ev, &cfg, &g_noise));
+    cfg.spacing = SX_MIN_SPACING;
+    TEST_ASSERT_EQUAL_INT(MD_OK, sx_extract_noise(g_x, 12000u, &g_ev, &cfg, &g_noise));
     TEST_ASSERT_EQUAL_size_t(100u, g_noise.n);
     TEST_ASSERT_TRUE(g_noise.n_rejected > 0u);
     for (size_t i = 0u; i < g_noise.n; ++i) {
@@ -81,14 +84,19 @@ static void test_noise_snippets_avoid_detections(void)
             const long t = (long)g_ev.t[k];
             TEST_ASSERT_TRUE((t < s - 20) || (t >= s + 23 + 20));
         }
+        for (size_t j = 0u; j < i; ++j) { /* snippets never overlap each other */
+            const long a = (long)g_noise.start[i];
+            const long b = (long)g_noise.start[j];
+            TEST_ASSERT_TRUE((a >= b + 23) || (b >= a + 23));
+        }
     }
     /* same seed, same snippets */
     const uint32_t first = g_noise.start[0];
-    TEST_ASSERT_EQUAL_INT(MD_OK, sx_extract_noise(g_x, 4000u, &g_ev, &cfg, &g_noise));
+    TEST_ASSERT_EQUAL_INT(MD_OK, sx_extract_noise(g_x, 12000u, &g_ev, &cfg, &g_noise));
     TEST_ASSERT_EQUAL_UINT32(first, g_noise.start[0]);
-    /* no room at all: every draw rejected, reported */
+    /* no room at all: every candidate rejected, reported */
     cfg.guard = 100u;
-    TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, sx_extract_noise(g_x, 4000u, &g_ev, &cfg, &g_noise));
+    TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, sx_extract_noise(g_x, 12000u, &g_ev, &cfg, &g_noise));
     TEST_ASSERT_EQUAL_UINT32(SX_FLAG_NOISE_SHORT, g_noise.flags & SX_FLAG_NOISE_SHORT);
 }
 
@@ -108,6 +116,7 @@ static void test_chain_measures_the_synthetic_snr(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, sd_finish(&g_det, &g_ev));
     sx_config_t cfg;
     sx_config_default(&cfg, FS_HZ);
+    cfg.spacing = 80u; /* a 2 s interval: enough candidates for 128 snippets */
     size_t n = 0u;
     const int16_t *x = sd_samples(&g_det, &n);
     TEST_ASSERT_EQUAL_INT(MD_OK, sx_extract_spikes(x, n, &g_ev, &cfg, &g_sp));

@@ -160,6 +160,7 @@ static md_status_t sd_setup(sd_stream_t *st)
      * step. Consumers (extractor) add their own window on top. */
     const uint64_t lat = (uint64_t)st->dmax + 2u * SD_RUN_MAX + st->merge + st->before + st->after + st->dedupe +
                          2u * SD_STEP_SAMPLES;
+    st->latency = (uint32_t)lat;
     return (lat + 256u <= SD_RING_SAMPLES) ? MD_OK : MD_E_ARG;
 }
 
@@ -221,6 +222,11 @@ bool sd_stream_busy(const sd_stream_t *st)
 const sd_events_t *sd_stream_events(const sd_stream_t *st)
 {
     return (st == NULL) ? NULL : &st->ev;
+}
+
+uint32_t sd_stream_latency(const sd_stream_t *st)
+{
+    return (st == NULL) ? 0u : st->latency;
 }
 
 uint32_t sd_stream_processed(const sd_stream_t *st)

@@ -181,6 +181,7 @@ typedef struct {
     bool has_pend;
     uint32_t pend_t;
     uint32_t due;
+    uint32_t latency;
     rs_hist_t rs;
     rs_hist_t rs2;
     sd_events_t ev;
@@ -237,6 +238,12 @@ uint32_t sd_stream_processed(const sd_stream_t *st);
 /// t < horizon are all in sd_stream_events() except at most the pending one
 /// (*pend_t, *has_pend), which can only move later. UINT32_MAX after finish.
 uint32_t sd_stream_horizon(const sd_stream_t *st, bool *has_pend, uint32_t *pend_t);
+
+/// Bound on how far behind the newest sample the detector may still need
+/// or commit samples (kernel delay, capped runs and groups, alignment,
+/// dedupe, one step). A consumer of the delay line must fit its own window
+/// within SD_RING_SAMPLES - latency. 0 if st is NULL.
+uint32_t sd_stream_latency(const sd_stream_t *st);
 
 /// Copies raw samples [start, start + len) from the delay line into dst.
 /// MD_E_ARG if any of them is not (or no longer) in it. O(len).

@@ -1,13 +1,14 @@
 /// @file spike_extract.c
-/// Spike windows and noise snippets (see spike_extract.h).
+/// Spike windows and noise snippets, streaming and offline (see spike_extract.h).
 #include "signal/spike_extract.h"
 
 #include <math.h>
 #include <string.h>
 
-#include "common/md_rng.h"
+#define SX_RES_SEED_MIX 0x9E3779B97F4A7C15ull /* decorrelates the reservoir stream from the gap stream */
 
-#define SX_DRAWS_PER_SNIPPET 16u
+typedef enum { SX_CUT_OK = 0, SX_CUT_EDGE = 1, SX_CUT_LOST = 2 } sx_cut_t;
+typedef enum { SX_NOISE_ACCEPT = 0, SX_NOISE_REJECT = 1, SX_NOISE_EXPIRED = 2 } sx_noise_verdict_t;
 
 void sx_config_default(sx_config_t *cfg, uint32_t sample_rate_hz)
 {
@@ -22,21 +23,291 @@ void sx_config_default(sx_config_t *cfg, uint32_t sample_rate_hz)
     cfg->n_noise = 128u;
     cfg->guard = (uint32_t)cfg->d_w;
     cfg->seed = 1u;
+    cfg->spacing = (uint32_t)lround(10.0 * fs / (4.0 * 128.0));
 }
 
 static int sx_config_valid(const sx_config_t *c)
 {
     return (c->d_w >= 4u) && (c->d_w <= MD_WAVE_LEN_MAX) && (c->pre_peak < c->d_w) && (c->realign <= 1000u) &&
            (c->gain > 0.0) && isfinite(c->gain) && (c->n_noise <= MD_MAX_NOISE_SNIPPETS) &&
-           (c->guard <= 100000u);
+           (c->guard <= 100000u) && (c->spacing <= SD_MAX_INTERVAL_SAMPLES);
 }
 
-static void sx_copy(const int16_t *x, size_t start, size_t d_w, int32_t offset, double gain, double *dst)
+/* ---- window cutter (shared) --------------------------------------------- */
+
+/* Realigns t to the first minimum within +-realign (thesis: align by the
+ * waveform minimum) and copies the window, offset removed, into row16
+ * (saturated, *clipped counts saturations) or rowd (times gain). */
+static sx_cut_t sx_cut(const sd_view_t *v, uint32_t t, const sx_config_t *c, int32_t offset, int16_t *row16,
+                       double *rowd, uint32_t *t_out, uint32_t *clipped)
 {
-    for (size_t j = 0u; j < d_w; ++j) {
-        dst[j] = gain * (double)((int32_t)x[start + j] - offset);
+    if (c->realign > 0u) {
+        t = sd_view_argmin(v, (t > c->realign) ? (t - c->realign) : 0u, t + c->realign);
+    }
+    *t_out = t;
+    if ((t < c->pre_peak) || ((uint64_t)t - c->pre_peak + c->d_w > (uint64_t)v->hi)) {
+        return SX_CUT_EDGE;
+    }
+    const uint32_t start = t - (uint32_t)c->pre_peak;
+    if (start < v->lo) {
+        return SX_CUT_LOST;
+    }
+    for (size_t j = 0u; j < c->d_w; ++j) {
+        const int32_t d = (int32_t)v->x[(start + (uint32_t)j) & v->mask] - offset;
+        if (rowd != NULL) {
+            rowd[j] = c->gain * (double)d;
+        } else {
+            const int32_t s = (d > INT16_MAX) ? INT16_MAX : ((d < INT16_MIN) ? INT16_MIN : d);
+            *clipped += (s != d) ? 1u : 0u;
+            row16[j] = (int16_t)s;
+        }
+    }
+    return SX_CUT_OK;
+}
+
+/* ---- snippet picker (shared) -------------------------------------------- */
+
+static void sx_pick_init(sx_picker_t *p, const sx_config_t *c)
+{
+    md_rng_seed(&p->pos_rng, c->seed);
+    md_rng_seed(&p->res_rng, c->seed ^ SX_RES_SEED_MIX);
+    p->min_gap = (c->d_w > SX_MIN_SPACING) ? (uint32_t)c->d_w : SX_MIN_SPACING;
+    p->span = (c->spacing > p->min_gap) ? 2u * (c->spacing - p->min_gap) : 0u;
+    p->next = md_rng_below(&p->pos_rng, (c->spacing > 0u) ? c->spacing : 1u);
+    p->cursor = 0u;
+}
+
+/* Next candidate start; gaps are min_gap + U[0, span] (mean `spacing`), so
+ * candidates never overlap and at most SX_QUEUE_MAX fit in the delay line. */
+static uint32_t sx_pick_advance(sx_picker_t *p)
+{
+    const uint32_t s = p->next;
+    p->next = s + p->min_gap + md_rng_below(&p->pos_rng, p->span + 1u);
+    return s;
+}
+
+/* Verdict for candidate s against the committed events (ascending; the
+ * candidates are ascending too, so one cursor scans them once). */
+static sx_noise_verdict_t sx_pick_check(sx_picker_t *p, const sd_events_t *ev, const sd_view_t *v, uint32_t s,
+                                        const sx_config_t *c)
+{
+    if (s < v->lo) {
+        return SX_NOISE_EXPIRED;
+    }
+    const uint64_t zone_end = (uint64_t)s + c->d_w + c->guard;
+    if ((ev->n_overflow > 0u) && (ev->n > 0u) && ((uint64_t)s + c->d_w > (uint64_t)ev->t[ev->n - 1u])) {
+        return SX_NOISE_REJECT; /* events after the last stored one are unknown */
+    }
+    for (; (p->cursor < ev->n) && ((uint64_t)ev->t[p->cursor] + c->guard < (uint64_t)s); ++p->cursor) {
+    }
+    return ((p->cursor < ev->n) && ((uint64_t)ev->t[p->cursor] < zone_end)) ? SX_NOISE_REJECT : SX_NOISE_ACCEPT;
+}
+
+/* Reservoir sampling: the i-th confirmed candidate (0-based) takes slot i
+ * while there is room, else replaces a uniform slot with probability cap/(i+1). */
+static bool sx_pick_slot(sx_picker_t *p, uint32_t i, size_t cap, size_t *slot)
+{
+    if (i < cap) {
+        *slot = i;
+        return true;
+    }
+    const uint32_t j = md_rng_below(&p->res_rng, i + 1u);
+    *slot = j;
+    return j < cap;
+}
+
+/* ---- streaming ------------------------------------------------------------ */
+
+md_status_t sx_stream_restart(sx_stream_t *sx)
+{
+    if ((sx == NULL) || (sx->win == NULL) || (sx->noise == NULL)) {
+        return MD_E_STATE;
+    }
+    sx_pick_init(&sx->pick, &sx->cfg);
+    sx->q_head = 0u;
+    sx->q_count = 0u;
+    sx->ev_cursor = 0u;
+    sx->win->n = 0u;
+    sx->win->d_w = sx->cfg.d_w;
+    sx->win->gain = sx->cfg.gain;
+    sx->win->offset = 0;
+    sx->win->n_edge_skipped = 0u;
+    sx->win->n_duplicate = 0u;
+    sx->win->n_overflow = 0u;
+    sx->win->n_lost = 0u;
+    sx->win->n_clipped = 0u;
+    sx->win->flags = 0u;
+    sx->noise->n = 0u;
+    sx->noise->d_w = sx->cfg.d_w;
+    sx->noise->gain = sx->cfg.gain;
+    sx->noise->offset = 0;
+    sx->noise->n_candidates = 0u;
+    sx->noise->n_confirmed = 0u;
+    sx->noise->n_rejected = 0u;
+    sx->noise->n_expired = 0u;
+    sx->noise->n_queue_full = 0u;
+    sx->noise->flags = 0u;
+    return MD_OK;
+}
+
+md_status_t sx_stream_init(sx_stream_t *sx, const sx_config_t *cfg, const sd_stream_t *det, sx_windows_t *win,
+                           sx_snippets_t *noise)
+{
+    if ((sx == NULL) || (cfg == NULL) || (det == NULL) || (win == NULL) || (noise == NULL) || !sx_config_valid(cfg)) {
+        return MD_E_ARG;
+    }
+    /* a window (with realignment) or a candidate's guard zone must still be in
+     * the delay line when the detector lets it go */
+    const uint64_t need = (uint64_t)sd_stream_latency(det) + cfg->pre_peak + cfg->d_w + 2u * cfg->realign +
+                          cfg->guard + 2u * SD_STEP_SAMPLES;
+    if (need > SD_RING_SAMPLES) {
+        return MD_E_ARG;
+    }
+    sx->cfg = *cfg;
+    sx->win = win;
+    sx->noise = noise;
+    return sx_stream_restart(sx);
+}
+
+static void sx_service_spikes(sx_stream_t *sx, const sd_events_t *ev, const sd_view_t *v, bool final)
+{
+    sx_windows_t *w = sx->win;
+    const sx_config_t *c = &sx->cfg;
+    for (size_t k = 0u; (k < MD_MAX_SPIKES) && (sx->ev_cursor < ev->n); ++k) {
+        const uint32_t t = ev->t[sx->ev_cursor];
+        const uint64_t need = (uint64_t)t + c->realign + c->d_w; /* >= last sample of the window + 1 */
+        if (!final && (need > (uint64_t)v->hi + c->pre_peak)) {
+            break; /* its samples have not all arrived */
+        }
+        sx->ev_cursor++;
+        if (w->n >= MD_MAX_SPIKES) {
+            w->n_overflow++;
+            continue;
+        }
+        uint32_t tt = t;
+        const sx_cut_t r = sx_cut(v, t, c, ev->offset, w->wave[w->n], NULL, &tt, &w->n_clipped);
+        if (r == SX_CUT_EDGE) {
+            w->n_edge_skipped++;
+        } else if (r == SX_CUT_LOST) {
+            w->n_lost++;
+        } else if ((w->n > 0u) && (w->t[w->n - 1u] == tt)) {
+            w->n_duplicate++;
+        } else {
+            w->t[w->n] = tt;
+            w->n++;
+        }
     }
 }
+
+static void sx_noise_take(sx_stream_t *sx, const sd_events_t *ev, const sd_view_t *v, uint32_t s)
+{
+    sx_snippets_t *z = sx->noise;
+    const sx_noise_verdict_t verdict = sx_pick_check(&sx->pick, ev, v, s, &sx->cfg);
+    if (verdict == SX_NOISE_EXPIRED) {
+        z->n_expired++;
+        return;
+    }
+    if (verdict == SX_NOISE_REJECT) {
+        z->n_rejected++;
+        return;
+    }
+    size_t slot = 0u;
+    const uint32_t i = z->n_confirmed++;
+    if (!sx_pick_slot(&sx->pick, i, sx->cfg.n_noise, &slot)) {
+        return;
+    }
+    uint32_t t_unused = 0u, clipped = 0u;
+    sx_config_t c = sx->cfg;
+    c.realign = 0u;
+    (void)sx_cut(v, s + (uint32_t)c.pre_peak, &c, ev->offset, z->wave[slot], NULL, &t_unused, &clipped);
+    z->start[slot] = s;
+    z->n = (slot >= z->n) ? (slot + 1u) : z->n;
+}
+
+static void sx_service_noise(sx_stream_t *sx, const sd_stream_t *det, const sd_events_t *ev, const sd_view_t *v)
+{
+    sx_snippets_t *z = sx->noise;
+    const uint32_t d_w = (uint32_t)sx->cfg.d_w;
+    for (uint32_t k = 0u; (k <= SD_RING_SAMPLES) && ((uint64_t)sx->pick.next + d_w <= (uint64_t)v->hi); ++k) {
+        const uint32_t s = sx_pick_advance(&sx->pick);
+        z->n_candidates++;
+        if (sx->q_count >= SX_QUEUE_MAX) {
+            z->n_queue_full++;
+            continue;
+        }
+        sx->queue[(sx->q_head + sx->q_count) % SX_QUEUE_MAX] = s;
+        sx->q_count++;
+    }
+    bool has_pend = false;
+    uint32_t pend_t = 0u;
+    const uint32_t horizon = sd_stream_horizon(det, &has_pend, &pend_t);
+    for (uint32_t k = 0u; (k < SX_QUEUE_MAX) && (sx->q_count > 0u); ++k) {
+        const uint32_t s = sx->queue[sx->q_head];
+        const uint64_t zone_end = (uint64_t)s + d_w + sx->cfg.guard;
+        /* confirm only once every detection that could touch the zone is
+         * final; the pending event can only move later, so it matters only
+         * while it sits before the zone's end */
+        if ((zone_end > (uint64_t)horizon) || (has_pend && ((uint64_t)pend_t < zone_end))) {
+            break;
+        }
+        sx->q_head = (sx->q_head + 1u) % SX_QUEUE_MAX;
+        sx->q_count--;
+        sx_noise_take(sx, ev, v, s);
+    }
+}
+
+md_status_t sx_stream_service(sx_stream_t *sx, const sd_stream_t *det, bool final)
+{
+    if ((sx == NULL) || (det == NULL) || (sx->win == NULL) || (sx->noise == NULL)) {
+        return MD_E_ARG;
+    }
+    const sd_events_t *ev = sd_stream_events(det);
+    const sd_view_t v = sd_stream_view(det);
+    sx->win->offset = ev->offset;
+    sx->noise->offset = ev->offset;
+    sx_service_spikes(sx, ev, &v, final);
+    sx_service_noise(sx, det, ev, &v);
+    if (!final) {
+        return MD_OK;
+    }
+    if (sx->q_count > 0u) {
+        return MD_E_STATE; /* sd_stream_finish() was not called: events are not final */
+    }
+    sx->win->n_overflow += ev->n_overflow;
+    sx->win->flags |= (ev->n_overflow > 0u) ? SX_FLAG_OVERFLOW : 0u;
+    sx->noise->flags |= (ev->n_overflow > 0u) ? SX_FLAG_OVERFLOW : 0u;
+    if (sx->noise->n < sx->cfg.n_noise) {
+        sx->noise->flags |= SX_FLAG_NOISE_SHORT;
+        if (sx->noise->n == 0u) {
+            return MD_E_DEGENERATE;
+        }
+    }
+    return MD_OK;
+}
+
+md_status_t sx_window_to_double(const sx_windows_t *w, size_t i, double *dst)
+{
+    if ((w == NULL) || (dst == NULL) || (i >= w->n) || (w->d_w > MD_WAVE_LEN_MAX)) {
+        return MD_E_ARG;
+    }
+    for (size_t j = 0u; j < w->d_w; ++j) {
+        dst[j] = w->gain * (double)w->wave[i][j];
+    }
+    return MD_OK;
+}
+
+md_status_t sx_snippet_to_double(const sx_snippets_t *s, size_t i, double *dst)
+{
+    if ((s == NULL) || (dst == NULL) || (i >= s->n) || (s->d_w > MD_WAVE_LEN_MAX)) {
+        return MD_E_ARG;
+    }
+    for (size_t j = 0u; j < s->d_w; ++j) {
+        dst[j] = s->gain * (double)s->wave[i][j];
+    }
+    return MD_OK;
+}
+
+/* ---- offline convenience path ------------------------------------------- */
 
 md_status_t sx_extract_spikes(const int16_t *x, size_t n, const sd_events_t *ev, const sx_config_t *cfg,
                               sx_spikes_t *out)
@@ -45,6 +316,7 @@ md_status_t sx_extract_spikes(const int16_t *x, size_t n, const sd_events_t *ev,
         (ev->n > MD_MAX_SPIKES) || (n > SD_MAX_INTERVAL_SAMPLES)) {
         return MD_E_ARG;
     }
+    const sd_view_t v = {x, UINT32_MAX, 0u, (uint32_t)n};
     out->n = 0u;
     out->d_w = cfg->d_w;
     out->n_edge_skipped = 0u;
@@ -52,48 +324,21 @@ md_status_t sx_extract_spikes(const int16_t *x, size_t n, const sd_events_t *ev,
     out->n_overflow = ev->n_overflow;
     out->flags = (ev->n_overflow > 0u) ? SX_FLAG_OVERFLOW : 0u;
     for (size_t k = 0u; k < ev->n; ++k) {
-        size_t t = ev->t[k];
-        if (t >= n) {
+        if (ev->t[k] >= n) {
             return MD_E_ARG;
         }
-        if (cfg->realign > 0u) { /* thesis: align by the waveform minimum */
-            const size_t lo = (t > cfg->realign) ? (t - cfg->realign) : 0u;
-            const size_t hi = (t + cfg->realign < n) ? (t + cfg->realign) : (n - 1u);
-            for (size_t i = lo; i <= hi; ++i) {
-                t = (x[i] < x[t]) ? i : t;
-            }
-        }
-        if ((t < cfg->pre_peak) || (t - cfg->pre_peak + cfg->d_w > n)) {
+        uint32_t t = ev->t[k], clipped = 0u;
+        const sx_cut_t r = sx_cut(&v, ev->t[k], cfg, ev->offset, NULL, out->wave[out->n], &t, &clipped);
+        if (r != SX_CUT_OK) {
             out->n_edge_skipped++;
-            continue;
-        }
-        if ((out->n > 0u) && (out->t[out->n - 1u] == (uint32_t)t)) {
+        } else if ((out->n > 0u) && (out->t[out->n - 1u] == t)) {
             out->n_duplicate++;
-            continue;
+        } else {
+            out->t[out->n] = t;
+            out->n++;
         }
-        sx_copy(x, t - cfg->pre_peak, cfg->d_w, ev->offset, cfg->gain, out->wave[out->n]);
-        out->t[out->n] = (uint32_t)t;
-        out->n++;
     }
     return MD_OK;
-}
-
-/* True if [start, start + len) comes within `guard` of any event (ascending
- * times): binary search for the first event >= start - guard. */
-static int sx_touches_event(const sd_events_t *ev, size_t start, size_t len, size_t guard)
-{
-    const size_t lo_t = (start > guard) ? (start - guard) : 0u;
-    size_t lo = 0u;
-    size_t hi = ev->n;
-    for (unsigned it = 0u; (it < 64u) && (lo < hi); ++it) {
-        const size_t mid = lo + (hi - lo) / 2u;
-        if ((size_t)ev->t[mid] < lo_t) {
-            lo = mid + 1u;
-        } else {
-            hi = mid;
-        }
-    }
-    return (lo < ev->n) && ((size_t)ev->t[lo] < start + len + guard);
 }
 
 md_status_t sx_extract_noise(const int16_t *x, size_t n, const sd_events_t *ev, const sx_config_t *cfg,
@@ -103,28 +348,29 @@ md_status_t sx_extract_noise(const int16_t *x, size_t n, const sd_events_t *ev, 
         (ev->n > MD_MAX_SPIKES) || (n > SD_MAX_INTERVAL_SAMPLES)) {
         return MD_E_ARG;
     }
+    const sd_view_t v = {x, UINT32_MAX, 0u, (uint32_t)n};
+    sx_picker_t p;
+    sx_pick_init(&p, cfg);
+    sx_config_t c = *cfg;
+    c.realign = 0u;
     out->n = 0u;
     out->d_w = cfg->d_w;
     out->n_rejected = 0u;
-    out->flags = 0u;
-    /* Events past the last stored one are unknown after an overflow. */
-    size_t limit = n;
-    if ((ev->n_overflow > 0u) && (ev->n > 0u)) {
-        limit = (size_t)ev->t[ev->n - 1u];
-        out->flags |= SX_FLAG_OVERFLOW;
-    }
-    md_rng_t rng;
-    md_rng_seed(&rng, cfg->seed);
-    const size_t draws = SX_DRAWS_PER_SNIPPET * cfg->n_noise;
-    for (size_t d = 0u; (d < draws) && (out->n < cfg->n_noise) && (limit >= cfg->d_w); ++d) {
-        const size_t start = md_rng_below(&rng, (uint32_t)(limit - cfg->d_w + 1u));
-        if (sx_touches_event(ev, start, cfg->d_w, cfg->guard)) {
+    out->flags = (ev->n_overflow > 0u) ? SX_FLAG_OVERFLOW : 0u;
+    uint32_t confirmed = 0u;
+    for (size_t it = 0u; (it <= n) && ((uint64_t)p.next + cfg->d_w <= (uint64_t)n); ++it) {
+        const uint32_t s = sx_pick_advance(&p);
+        size_t slot = 0u;
+        if (sx_pick_check(&p, ev, &v, s, cfg) != SX_NOISE_ACCEPT) {
             out->n_rejected++;
-            continue;
+        } else if (sx_pick_slot(&p, confirmed++, cfg->n_noise, &slot)) {
+            uint32_t t_unused = 0u, clipped = 0u;
+            (void)sx_cut(&v, s + (uint32_t)c.pre_peak, &c, ev->offset, NULL, out->wave[slot], &t_unused, &clipped);
+            out->start[slot] = s;
+            out->n = (slot >= out->n) ? (slot + 1u) : out->n;
+        } else {
+            /* confirmed but not kept by the reservoir */
         }
-        sx_copy(x, start, cfg->d_w, ev->offset, cfg->gain, out->wave[out->n]);
-        out->start[out->n] = (uint32_t)start;
-        out->n++;
     }
     if (out->n < cfg->n_noise) {
         out->flags |= SX_FLAG_NOISE_SHORT;

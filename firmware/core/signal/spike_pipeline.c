@@ -1,0 +1,92 @@
+/// @file spike_pipeline.c
+/// Detector + extractor of one channel (see spike_pipeline.h).
+#include "signal/spike_pipeline.h"
+
+#define SP_IDLE 0
+#define SP_STREAMING 1
+#define SP_DONE 2
+
+md_status_t sp_init(sp_channel_t *ch, const sd_config_t *dcfg, const sx_config_t *xcfg, sx_windows_t *win,
+                    sx_snippets_t *noise)
+{
+    if (ch == NULL) {
+        return MD_E_ARG;
+    }
+    ch->state = SP_IDLE;
+    md_status_t r = sd_stream_init(&ch->det, dcfg);
+    if (r == MD_OK) {
+        r = sx_stream_init(&ch->ext, xcfg, &ch->det, win, noise);
+    }
+    ch->state = (r == MD_OK) ? SP_STREAMING : SP_IDLE;
+    return r;
+}
+
+md_status_t sp_restart(sp_channel_t *ch)
+{
+    if ((ch == NULL) || (ch->state == SP_IDLE)) {
+        return MD_E_STATE;
+    }
+    const md_status_t r = sd_stream_restart(&ch->det);
+    ch->state = SP_STREAMING;
+    return (r == MD_OK) ? sx_stream_restart(&ch->ext) : r;
+}
+
+/* Steps the detector through x (and through a pending warm-up replay),
+ * servicing the extractor after every step. Each sd_stream_push call
+ * consumes input or advances the replay, so the loop bound is never hit. */
+static md_status_t sp_drive(sp_channel_t *ch, const int16_t *x, size_t n)
+{
+    size_t off = 0u;
+    md_status_t r = MD_OK;
+    for (size_t it = 0u; (it <= n + SD_WARMUP_MAX + 2u) && ((off < n) || sd_stream_busy(&ch->det)); ++it) {
+        size_t used = 0u;
+        r = sd_stream_push(&ch->det, (x != NULL) ? &x[off] : NULL, n - off, &used);
+        off += used;
+        if (r < 0) {
+            return r;
+        }
+        r = sx_stream_service(&ch->ext, &ch->det, false);
+        if (r < 0) {
+            return r;
+        }
+    }
+    return r;
+}
+
+md_status_t sp_push(sp_channel_t *ch, const int16_t *x, size_t n)
+{
+    if ((ch == NULL) || ((x == NULL) && (n > 0u))) {
+        return MD_E_ARG;
+    }
+    if (ch->state != SP_STREAMING) {
+        return MD_E_STATE;
+    }
+    return sp_drive(ch, x, n);
+}
+
+md_status_t sp_finish(sp_channel_t *ch)
+{
+    if (ch == NULL) {
+        return MD_E_ARG;
+    }
+    if (ch->state != SP_STREAMING) {
+        return MD_E_STATE;
+    }
+    ch->state = SP_DONE;
+    md_status_t r = sd_stream_end(&ch->det);
+    if (r == MD_OK) {
+        r = sp_drive(ch, NULL, 0u);
+    }
+    if (r == MD_OK) {
+        r = sd_stream_finish(&ch->det);
+    }
+    if (r == MD_OK) {
+        r = sx_stream_service(&ch->ext, &ch->det, true);
+    }
+    return r;
+}
+
+const sd_events_t *sp_events(const sp_channel_t *ch)
+{
+    return (ch == NULL) ? NULL : sd_stream_events(&ch->det);
+}
