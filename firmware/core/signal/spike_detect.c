@@ -22,6 +22,7 @@
  * envelope 1.6 w / ... i.e. w = 1.6 * (W / 4) * fs = 0.4 W fs. */
 #define SD_BOX_PER_WIDTH 0.4
 #define SD_NONE 0xFFFFFFFFu
+#define SD_DECIMATE_BOX 4u /* boxes this wide are evaluated at every 2nd centre */
 
 #define SD_RING_MASK (SD_RING_SAMPLES - 1u)
 
@@ -99,6 +100,7 @@ static md_status_t sd_build_scale(sd_stream_t *st, unsigned s, uint32_t *delay, 
     const int mexhat = (st->cfg.wavelet == SD_WAVELET_MEXHAT);
     const uint32_t support = (mexhat ? 4u : 3u) * w - 1u;
     double norm2 = 0.0;
+    double norm1 = 0.0;
     for (uint32_t j = 0u; j < support; ++j) { /* kernel value at lag j: sum of shifted triangles */
         double k = 0.0;
         for (uint32_t d = 0u; d < (mexhat ? 3u : 2u); ++d) {
@@ -109,8 +111,10 @@ static md_status_t sd_build_scale(sd_stream_t *st, unsigned s, uint32_t *delay, 
             }
         }
         norm2 += k * k;
+        norm1 += fabs(k);
     }
     st->box[s] = w;
+    st->kl1[s] = (uint32_t)norm1;
     st->knorm[s] = sqrt(norm2);
     *delay = (support - 1u) / 2u;
     *first_valid = (support - 1u) - *delay; /* centre index of the first full kernel */
@@ -150,6 +154,9 @@ static md_status_t sd_setup(sd_stream_t *st)
         const uint32_t span = (c->wavelet == SD_WAVELET_MEXHAT) ? 4u : 3u;
         for (unsigned s = 0u; s < st->ns; ++s) {
             st->lag[s] = st->dmax - delay[s];
+            /* a wide kernel varies slowly: its coefficient is evaluated at every
+             * 2nd centre (peak loss <= 1 % for box >= 7, see docs/detector.md) */
+            st->stride[s] = (st->box[s] >= SD_DECIMATE_BOX) ? 2u : 1u;
             const uint32_t need = st->lag[s] + span * st->box[s];
             st->hist_len = (need > st->hist_len) ? need : st->hist_len;
         }
@@ -171,6 +178,8 @@ static void sd_reset(sd_stream_t *st)
     st->warm_n = 0u;
     st->replay_pos = 0u;
     st->warm_sum = 0;
+    st->warm_min = INT16_MAX;
+    st->warm_max = INT16_MIN;
     st->n = 0u;
     st->above_prev = false;
     st->n_coefs = 0u;
@@ -367,7 +376,7 @@ uint32_t sd_stream_horizon(const sd_stream_t *st, bool *has_pend, uint32_t *pend
  * P(spike): M/2 + sigma^2/M (L + ln(P(noise)/P(spike))), clamped at 0. */
 static void sd_scale_decision(sd_stream_t *st, unsigned s, uint64_t sum, uint32_t hits, uint32_t count)
 {
-    const double n_eff = (count > 0u) ? (double)count : 1.0;
+    const double n_eff = (count > 0u) ? ((double)count / (double)st->stride[s]) : 1.0; /* coefficients evaluated */
     const double sigma = st->sigma_c[s];
     const double m = (hits > 0u) ? ((double)sum / (double)hits) : st->hard_c[s];
     const double p_spike = (hits > 0u) ? ((double)hits / n_eff) : (1.0 / n_eff);
@@ -420,16 +429,17 @@ static void sd_block_sums(sd_stream_t *st, const int16_t *x, uint32_t n0, uint32
 {
     uint32_t p1 = st->p1, p2 = st->p2;
     uint32_t *out = &st->p2lin[SD_P2_HIST];
+#pragma GCC unroll 4
     for (uint32_t i = 0u; i < k; ++i) {
         const int32_t xv = x[i];
         p1 += (uint32_t)xv;
         p2 += p1;
         out[i] = p2;
     }
-    if (ring) {
-        for (uint32_t i = 0u; i < k; ++i) {
-            st->buf[(n0 + i) & SD_RING_MASK] = x[i];
-        }
+    /* a step never wraps the delay line (SD_RING_SAMPLES is a multiple of the
+     * step and steps end on multiples of it), so this is one contiguous copy */
+    if (ring && (x != &st->buf[n0 & SD_RING_MASK])) {
+        memmove(&st->buf[n0 & SD_RING_MASK], x, k * sizeof x[0]);
     }
     st->p1 = p1;
     st->p2 = p2;
@@ -442,39 +452,57 @@ static void sd_block_shift(sd_stream_t *st, uint32_t k)
     memmove(&st->p2lin[SD_P2_HIST - h], &st->p2lin[SD_P2_HIST - h + k], h * sizeof st->p2lin[0]);
 }
 
+/* Largest (c + lo) mod 2^32 over the evaluated centres of a step: it
+ * exceeds 2 lo iff some |c| > lo (lo < 2^31), so the hot loops carry no
+ * branch, call or store; `step` is a literal at each call (1 or 2). */
+static inline uint32_t sd_scan(const uint32_t *q, size_t w, bool mexhat, uint32_t i0, uint32_t k, uint32_t step,
+                               uint32_t lo)
+{
+    uint32_t m = 0u;
+    if (mexhat) {
+        for (uint32_t i = i0; i < k; i += step) {
+            const uint32_t *r = &q[i];
+            const uint32_t v = ((r[4u * w] + r[0]) - 4u * (r[3u * w] + r[w]) + 6u * r[2u * w]) + lo;
+            m = (v > m) ? v : m;
+        }
+    } else {
+        for (uint32_t i = i0; i < k; i += step) {
+            const uint32_t *r = &q[i];
+            const uint32_t v = ((r[3u * w] - r[0]) - 3u * (r[2u * w] - r[w])) + lo;
+            m = (v > m) ? v : m;
+        }
+    }
+    return m;
+}
+
 /* Bit i set if the centre of sample n0 + i (i0 <= i < k <= 32) fires scale s.
- * The hot loop: 5 loads and 5 integer operations per coefficient, and
- * |c| > lo tested as (c + lo) > 2 lo in unsigned arithmetic (lo < 2^31). */
+ * Wide scales (stride 2) are evaluated at even centres, their decision held
+ * for the following odd one. Steps start on multiples of 32, so the same
+ * centres are evaluated in every pass and whatever the chunking. */
 static uint32_t sd_block_scale(sd_stream_t *st, unsigned s, uint32_t i0, uint32_t k)
 {
     const uint32_t lo = st->lo_i[s];
     if (lo >= 0x7FFFFFFFu) {
         return 0u; /* flat scale */
     }
-    const uint32_t lo2 = 2u * lo;
-    const uint32_t w = st->box[s];
-    const uint32_t *q0 = sd_taps(st, s, 0u);
-    const uint32_t *q1 = q0 + w;
-    const uint32_t *q2 = q1 + w;
-    const uint32_t *q3 = q2 + w;
+    const size_t w = st->box[s];
+    const bool mexhat = (st->cfg.wavelet == SD_WAVELET_MEXHAT);
+    const uint32_t *q = sd_taps(st, s, 0u);
+    const uint32_t step = st->stride[s];
+    i0 = (i0 + step - 1u) / step * step;
+    const uint32_t m = (step == 1u) ? sd_scan(q, w, mexhat, i0, k, 1u, lo) : sd_scan(q, w, mexhat, i0, k, 2u, lo);
+    if (m <= 2u * lo) {
+        return 0u;
+    }
     uint32_t mask = 0u;
-    if (st->cfg.wavelet == SD_WAVELET_MEXHAT) {
-        const uint32_t *q4 = q3 + w;
-        for (uint32_t i = i0; i < k; ++i) {
-            const uint32_t c = (q4[i] + q0[i]) - 4u * (q3[i] + q1[i]) + 6u * q2[i];
-            if (c + lo > lo2) {
-                mask |= sd_scale_hit(st, s, c) << i;
-            }
-        }
-    } else {
-        for (uint32_t i = i0; i < k; ++i) {
-            const uint32_t c = (q3[i] - q0[i]) - 3u * (q2[i] - q1[i]);
-            if (c + lo > lo2) {
-                mask |= sd_scale_hit(st, s, c) << i;
-            }
+    for (uint32_t i = i0; i < k; i += step) { /* rare: some coefficient passed the lower threshold */
+        const uint32_t c = sd_coef_at(&q[i], (uint32_t)w, mexhat);
+        if ((c + lo) > 2u * lo) {
+            mask |= sd_scale_hit(st, s, c) << i;
         }
     }
-    return mask;
+    /* a decimated scale's decision holds until its next evaluated centre */
+    return (step == 2u) ? (mask | ((mask << 1u) & ((k < 32u) ? ((1u << k) - 1u) : 0xFFFFFFFFu))) : mask;
 }
 
 /* First step-local index whose centre has a full kernel. */
@@ -572,7 +600,7 @@ static void sd_warm_pass(sd_stream_t *st, sd_pass_t pass, unsigned s, const size
  * locates both middle ranks, one fine pass resolves them. */
 static double sd_warm_median(sd_stream_t *st, unsigned s, sd_warm_t *w)
 {
-    const uint64_t total = w->count;
+    const uint64_t total = w->count; /* set by the caller: the passes recount the same centres */
     const uint64_t k[2] = {(total - 1u) / 2u, total / 2u};
     uint64_t before[2] = {0u, 0u};
     size_t bins[2];
@@ -598,13 +626,21 @@ static int sd_wavelet_stats(sd_stream_t *st)
 {
     sd_warm_t w;
     memset(&w, 0, sizeof w);
-    sd_warm_pass(st, SD_PASS_MOMENTS, 0u, NULL, &w);
-    const uint64_t total = w.count;
+    const uint32_t first = st->dmax + st->c_first;
+    const uint64_t total = (st->warm_n > first) ? ((st->warm_n - first + SD_SIGMA_STRIDE - 1u) / SD_SIGMA_STRIDE) : 0u;
+    if (total == 0u) {
+        return 0;
+    }
+    w.count = (uint32_t)total;
     const double n_nom = fmax(st->cfg.interval_s * (double)st->cfg.sample_rate_hz, (double)total + 2.0);
     int any = 0;
     for (unsigned s = 0u; s < st->ns; ++s) {
-        w.mean[s] = (int64_t)llround((double)w.sum[s] / (double)total);
-        const uint64_t range = w.maxabs[s] + (uint64_t)((w.mean[s] < 0) ? -w.mean[s] : w.mean[s]);
+        /* The kernel sums to zero exactly, so mean(c) over the warm-up is a
+         * boundary term of order range/N: it is taken as 0. A zero-sum kernel
+         * bounds |c| by L1/2 * (max x - min x), which sets the bin shift. */
+        w.mean[s] = 0;
+        const uint64_t range =
+            ((uint64_t)st->kl1[s] / 2u + 1u) * (uint64_t)((int64_t)st->warm_max - (int64_t)st->warm_min + 1);
         w.shift[s] = 0u;
         for (unsigned k = 0u; (k < 32u) && ((range >> w.shift[s]) > 0xFFFFu); ++k) {
             w.shift[s]++;
@@ -848,6 +884,8 @@ static md_status_t sd_warm_take(sd_stream_t *st, const int16_t *x, size_t n, siz
     for (uint32_t i = 0u; i < k; ++i) {
         st->buf[st->warm_n + i] = x[i];
         st->warm_sum += x[i];
+        st->warm_min = (x[i] < st->warm_min) ? x[i] : st->warm_min;
+        st->warm_max = (x[i] > st->warm_max) ? x[i] : st->warm_max;
     }
     st->warm_n += k;
     *used = k;

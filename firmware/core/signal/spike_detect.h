@@ -58,6 +58,7 @@
 
 _Static_assert(MD_WAVELET_SCALES_MAX >= 1u && MD_WAVELET_SCALES_MAX <= 16u, "1..16 wavelet scales");
 _Static_assert((SD_RING_SAMPLES & (SD_RING_SAMPLES - 1u)) == 0u, "ring size is a power of two");
+_Static_assert((SD_RING_SAMPLES % SD_STEP_SAMPLES) == 0u, "a step never wraps the delay line");
 _Static_assert(SD_P2_HIST >= 4u * SD_BOX_MAX + 2u * SD_BOX_MAX, "the widest kernel and its lag fit the history");
 _Static_assert((SD_REFINE_SAMPLES % SD_STEP_SAMPLES) == 0u && SD_STEP_SAMPLES == 32u, "steps never straddle a refinement; one bit per step sample");
 _Static_assert(SD_WARMUP_MAX >= SD_RING_SAMPLES, "the delay line aliases the warm-up buffer");
@@ -140,6 +141,8 @@ typedef struct {
     uint32_t warm_n;
     uint32_t replay_pos;
     int64_t warm_sum;
+    int16_t warm_min;
+    int16_t warm_max;
     uint32_t n;             /* samples processed online */
     /* amplitude detector */
     int32_t thr_lo;
@@ -148,10 +151,12 @@ typedef struct {
     /* wavelet bank */
     unsigned ns;
     uint32_t box[MD_WAVELET_SCALES_MAX];
+    uint32_t stride[MD_WAVELET_SCALES_MAX];
     uint32_t lag[MD_WAVELET_SCALES_MAX];
     uint32_t dmax;
     uint32_t c_first;
     double knorm[MD_WAVELET_SCALES_MAX];
+    uint32_t kl1[MD_WAVELET_SCALES_MAX];
     uint32_t lo_i[MD_WAVELET_SCALES_MAX];
     uint32_t hard_i[MD_WAVELET_SCALES_MAX];
     uint32_t dth_i[MD_WAVELET_SCALES_MAX];
