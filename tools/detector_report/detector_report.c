@@ -1,8 +1,15 @@
-/* detector_report: measures both spike detectors on synthetic intervals.
+/* detector_report: measures both spike detectors on synthetic intervals,
+ * through the streaming pipeline the firmware runs (spike_pipeline.h, chunks
+ * of 30 samples = one CAN FD frame).
  *
  * Usage: detector_report [--seconds S] [--seeds N] [--rate-hz R] [--fs HZ]
  *                        [--noise white|band] [--snr-min A] [--snr-max B]
- *                        [--k K] [--l L] [--wavelet mexhat|dog1]
+ *                        [--k K] [--l L] [--wavelet mexhat|dog1] [--scales N]
+ *                        [--refine 0|1] [--warmup-ms W]
+ *        detector_report --sizes          (sizeof of every signal-chain struct)
+ *        detector_report --bench wavelet|threshold [options]
+ *                        (one interval through the pipeline only: run under
+ *                         callgrind and read sp_push + sp_finish inclusive)
  * Prints a markdown table (stdout). Every trace is synth_trace() output:
  * Gaussian noise of RMS 20 counts plus a fixed template whose peak-to-peak
  * amplitude is SNR * noise RMS. A detection within 0.5 ms of a true trough is
@@ -12,18 +19,20 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "features/pca.h"
 #include "signal/spike_detect.h"
+#include "signal/spike_pipeline.h"
 #include "signal/spike_synth.h"
 
 #define MAX_SAMPLES (50000u * 60u)
 #define MAX_TRUTH 4096u
-#define CHUNK 32u /* samples per CAN FD frame of the front-end */
+#define CHUNK 30u /* samples per CAN FD frame of the front-end */
 
 static int16_t g_trace[MAX_SAMPLES];
-static int16_t g_interval[MAX_SAMPLES];
 static uint32_t g_truth[MAX_TRUTH];
-static sd_detector_t g_det;
-static sd_events_t g_ev;
+static sp_channel_t g_ch;
+static sx_windows_t g_win;
+static sx_snippets_t g_noise;
 
 typedef struct {
     double seconds;
@@ -106,29 +115,60 @@ static void run_one(const opts_t *o, sd_method_t method, double snr, uint64_t se
     cfg.n_scales = o->scales;
     cfg.refine = (o->refine != 0);
     cfg.warmup_ms = o->warmup_ms;
-    if (sd_init(&g_det, &cfg, g_interval, MAX_SAMPLES) != MD_OK) {
+    cfg.interval_s = o->seconds;
+    sx_config_t xc;
+    sx_config_default(&xc, o->fs);
+    if (sp_init(&g_ch, &cfg, &xc, &g_win, &g_noise) != MD_OK) {
         t->failures++;
         return;
     }
     for (size_t i = 0u; i < n; i += CHUNK) {
-        (void)sd_push(&g_det, &g_trace[i], (n - i < CHUNK) ? (n - i) : CHUNK);
+        (void)sp_push(&g_ch, &g_trace[i], (n - i < CHUNK) ? (n - i) : CHUNK);
     }
-    if (sd_finish(&g_det, &g_ev) != MD_OK) {
+    if (sp_finish(&g_ch) != MD_OK) {
         t->failures++;
         return;
     }
+    const sd_events_t *ev = sp_events(&g_ch);
     size_t hits = 0u, fp = 0u;
     const uint32_t tol = (uint32_t)(0.5e-3 * (double)o->fs + 0.5);
-    synth_match(g_truth, n_truth, g_ev.t, g_ev.n, tol, &hits, &fp);
+    synth_match(g_truth, n_truth, ev->t, ev->n, tol, &hits, &fp);
     t->truth += n_truth;
     t->hits += hits;
-    t->det += g_ev.n;
+    t->det += ev->n;
     t->fp += fp;
-    t->overflow += g_ev.n_overflow;
+    t->overflow += ev->n_overflow;
+}
+
+static void print_sizes(void)
+{
+    printf("| struct | bytes | role |\n|---|---:|---|\n");
+    printf("| sd_stream_t | %zu | streaming detector of one channel (warm-up buffer + delay line inside) |\n",
+           sizeof(sd_stream_t));
+    printf("| sx_stream_t | %zu | streaming extractor of one channel |\n", sizeof(sx_stream_t));
+    printf("| sp_channel_t | %zu | detector + extractor of one channel |\n", sizeof(sp_channel_t));
+    printf("| sx_windows_t | %zu | spike windows, int16 (caller-owned output) |\n", sizeof(sx_windows_t));
+    printf("| sx_snippets_t | %zu | noise snippets, int16 (caller-owned output) |\n", sizeof(sx_snippets_t));
+    printf("| sd_events_t | %zu | event list (inside sd_stream_t) |\n", sizeof(sd_events_t));
+    printf("| sd_detector_t | %zu | offline wrapper (plus the caller's interval buffer) |\n", sizeof(sd_detector_t));
+    printf("| sx_spikes_t | %zu | offline windows, double |\n", sizeof(sx_spikes_t));
+    printf("| sx_noise_t | %zu | offline snippets, double |\n", sizeof(sx_noise_t));
+    printf("| pca_basis_t | %zu | PCA basis |\n", sizeof(pca_basis_t));
+    printf("| pca_work_t | %zu | PCA scratch (shareable across channels) |\n", sizeof(pca_work_t));
 }
 
 int main(int argc, char **argv)
 {
+    if ((argc == 2) && (strcmp(argv[1], "--sizes") == 0)) {
+        print_sizes();
+        return 0;
+    }
+    int bench = -1;
+    if ((argc >= 3) && (strcmp(argv[1], "--bench") == 0)) {
+        bench = (strcmp(argv[2], "threshold") == 0) ? 0 : 1;
+        argc -= 2;
+        argv += 2;
+    }
     sd_config_t defaults;
     sd_config_default(&defaults, SD_METHOD_WAVELET, 20000u);
     opts_t o = {10.0, 5u, 20.0, 20000u, 0, 2.0, 8.0, defaults.k_sigma, defaults.cost_ratio_l,
@@ -139,12 +179,20 @@ int main(int argc, char **argv)
                         "[--snr-min A] [--snr-max B] [--k K] [--l L] [--wavelet mexhat|dog1]\n", argv[0]);
         return 2;
     }
+    if (bench >= 0) {
+        tally_t t = {0u, 0u, 0u, 0u, 0u, 0u};
+        run_one(&o, (bench == 0) ? SD_METHOD_THRESHOLD : SD_METHOD_WAVELET, o.snr_min, 1000u, &t);
+        printf("bench: %zu true spikes, %zu hits, %zu detections\n", t.truth, t.hits, t.det);
+        return (t.failures > 0u) ? 1 : 0;
+    }
     printf("Synthetic intervals: %.1f s at %u Hz, %s Gaussian noise (RMS 20 counts), "
            "firing %.0f Hz with 3 ms refractory gap, %u seeds per cell. Detectors: threshold k = %.2f, "
-           "dead time 1 ms, negative polarity; wavelet %s, 4 scales 0.5-1.0 ms, L = %.3f. "
+           "dead time 1 ms, negative polarity; wavelet %s, %u scales 0.5-1.0 ms, L = %.3f, "
+           "warm-up %.0f ms, refinement %s. Streaming pipeline, %u-sample chunks. "
            "SNR = template peak-to-peak / noise RMS. Hit = detection within 0.5 ms of a true trough.\n\n",
            o.seconds, o.fs, o.band ? "band-limited ([1 2 1] low-pass)" : "white", o.rate_hz, o.seeds, o.k_sigma,
-           o.dog1 ? "first derivative of Gaussian" : "Mexican hat", o.cost_l);
+           o.dog1 ? "first-difference B-spline (DOG1)" : "second-difference B-spline (Mexican hat)", o.scales,
+           o.cost_l, o.warmup_ms, o.refine ? "on" : "off", CHUNK);
     printf("| SNR | detector | true spikes | detection rate | false-positive fraction | false positives / s |\n");
     printf("|---:|---|---:|---:|---:|---:|\n");
     int bad = 0;

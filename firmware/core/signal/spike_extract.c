@@ -159,7 +159,7 @@ md_status_t sx_stream_init(sx_stream_t *sx, const sx_config_t *cfg, const sd_str
     /* a window (with realignment) or a candidate's guard zone must still be in
      * the delay line when the detector lets it go */
     const uint64_t need = (uint64_t)sd_stream_latency(det) + cfg->pre_peak + cfg->d_w + 2u * cfg->realign +
-                          cfg->guard + 2u * SD_STEP_SAMPLES;
+                          cfg->guard + SX_SERVICE_MAX + SD_STEP_SAMPLES;
     if (need > SD_RING_SAMPLES) {
         return MD_E_ARG;
     }

@@ -33,6 +33,7 @@
 
 #define SX_QUEUE_MAX 64u     ///< noise candidates waiting for confirmation
 #define SX_MIN_SPACING (SD_RING_SAMPLES / SX_QUEUE_MAX)  ///< smallest candidate gap: the queue cannot overflow
+#define SX_SERVICE_MAX 128u  ///< sx_stream_service() must run at least every this many samples
 
 /// Extraction parameters; fill with sx_config_default().
 typedef struct {
@@ -122,9 +123,10 @@ md_status_t sx_stream_init(sx_stream_t *sx, const sx_config_t *cfg, const sd_str
 md_status_t sx_stream_restart(sx_stream_t *sx);
 
 /// Cuts the windows of newly committed events and confirms or rejects noise
-/// candidates, from the detector's current state. Call after every
-/// sd_stream_push() (spike_pipeline.h does), and once with `final` after
-/// sd_stream_finish(). O(new events * d_w + candidates * d_w).
+/// candidates, from the detector's current state. Call at least every
+/// SX_SERVICE_MAX processed samples, at the same sample indices whatever the
+/// chunking (spike_pipeline.h calls it at multiples of SX_SERVICE_MAX), and
+/// once with `final` after sd_stream_finish(). O(new events * d_w + candidates * d_w).
 md_status_t sx_stream_service(sx_stream_t *sx, const sd_stream_t *det, bool final);
 
 /// Window i as doubles in physical units (gain * counts) into dst[0..d_w).

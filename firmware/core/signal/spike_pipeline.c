@@ -2,6 +2,8 @@
 /// Detector + extractor of one channel (see spike_pipeline.h).
 #include "signal/spike_pipeline.h"
 
+#include <string.h>
+
 #define SP_IDLE 0
 #define SP_STREAMING 1
 #define SP_DONE 2
@@ -17,6 +19,7 @@ md_status_t sp_init(sp_channel_t *ch, const sd_config_t *dcfg, const sx_config_t
     if (r == MD_OK) {
         r = sx_stream_init(&ch->ext, xcfg, &ch->det, win, noise);
     }
+    ch->n_stage = 0u;
     ch->state = (r == MD_OK) ? SP_STREAMING : SP_IDLE;
     return r;
 }
@@ -27,6 +30,7 @@ md_status_t sp_restart(sp_channel_t *ch)
         return MD_E_STATE;
     }
     const md_status_t r = sd_stream_restart(&ch->det);
+    ch->n_stage = 0u;
     ch->state = SP_STREAMING;
     return (r == MD_OK) ? sx_stream_restart(&ch->ext) : r;
 }
@@ -40,14 +44,18 @@ static md_status_t sp_drive(sp_channel_t *ch, const int16_t *x, size_t n)
     md_status_t r = MD_OK;
     for (size_t it = 0u; (it <= n + SD_WARMUP_MAX + 2u) && ((off < n) || sd_stream_busy(&ch->det)); ++it) {
         size_t used = 0u;
+        const uint32_t before = sd_stream_processed(&ch->det);
         r = sd_stream_push(&ch->det, (x != NULL) ? &x[off] : NULL, n - off, &used);
         off += used;
         if (r < 0) {
             return r;
         }
-        r = sx_stream_service(&ch->ext, &ch->det, false);
-        if (r < 0) {
-            return r;
+        const uint32_t now = sd_stream_processed(&ch->det);
+        if ((now != before) && ((now % SX_SERVICE_MAX) == 0u)) { /* fixed sample indices: chunk-independent */
+            r = sx_stream_service(&ch->ext, &ch->det, false);
+            if (r < 0) {
+                return r;
+            }
         }
     }
     return r;
@@ -61,7 +69,29 @@ md_status_t sp_push(sp_channel_t *ch, const int16_t *x, size_t n)
     if (ch->state != SP_STREAMING) {
         return MD_E_STATE;
     }
-    return sp_drive(ch, x, n);
+    size_t off = 0u;
+    md_status_t r = MD_OK;
+    if (ch->n_stage > 0u) { /* complete the staged step first */
+        const size_t take = ((size_t)(SD_STEP_SAMPLES - ch->n_stage) < n) ? (SD_STEP_SAMPLES - ch->n_stage) : n;
+        memcpy(&ch->stage[ch->n_stage], x, take * sizeof x[0]);
+        ch->n_stage += (uint32_t)take;
+        off = take;
+        if (ch->n_stage < SD_STEP_SAMPLES) {
+            return MD_OK;
+        }
+        ch->n_stage = 0u;
+        r = sp_drive(ch, ch->stage, SD_STEP_SAMPLES);
+    }
+    const size_t whole = (n - off) / SD_STEP_SAMPLES * SD_STEP_SAMPLES;
+    if ((r == MD_OK) && (whole > 0u)) {
+        r = sp_drive(ch, &x[off], whole);
+    }
+    off += whole;
+    if ((r == MD_OK) && (off < n)) {
+        memcpy(ch->stage, &x[off], (n - off) * sizeof x[0]);
+        ch->n_stage = (uint32_t)(n - off);
+    }
+    return r;
 }
 
 md_status_t sp_finish(sp_channel_t *ch)
@@ -73,7 +103,12 @@ md_status_t sp_finish(sp_channel_t *ch)
         return MD_E_STATE;
     }
     ch->state = SP_DONE;
-    md_status_t r = sd_stream_end(&ch->det);
+    md_status_t r = sp_drive(ch, ch->stage, ch->n_stage);
+    ch->n_stage = 0u;
+    if (r < 0) {
+        return r;
+    }
+    r = sd_stream_end(&ch->det);
     if (r == MD_OK) {
         r = sp_drive(ch, NULL, 0u);
     }

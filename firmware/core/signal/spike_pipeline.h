@@ -28,6 +28,8 @@
 typedef struct {
     sd_stream_t det;
     sx_stream_t ext;
+    int16_t stage[SD_STEP_SAMPLES];  /* samples waiting for a full step (frames of 30 do not align with 32) */
+    uint32_t n_stage;
     int state;
 } sp_channel_t;
 
@@ -40,7 +42,9 @@ md_status_t sp_init(sp_channel_t *ch, const sd_config_t *dcfg, const sx_config_t
 /// Starts a new interval (clears events and outputs). O(1).
 md_status_t sp_restart(sp_channel_t *ch);
 
-/// Streams a chunk (any length, n == 0 allowed). MD_E_DEGENERATE if the
+/// Streams a chunk (any length, n == 0 allowed). Samples are staged until a
+/// whole SD_STEP_SAMPLES step is available, so the detector always runs
+/// full steps (the per-step overhead is paid once per 32 samples). MD_E_DEGENERATE if the
 /// warm-up was flat (the chunk is consumed, nothing is detected);
 /// MD_E_CAPACITY beyond SD_MAX_INTERVAL_SAMPLES; MD_E_STATE after
 /// sp_finish(). O(n * scales), plus the warm-up replay once per interval.
