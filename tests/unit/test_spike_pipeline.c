@@ -5,6 +5,8 @@
  * offline convenience path (sd_detector_t + sx_extract_*). */
 #include <string.h>
 
+#include "features/pca.h"
+#include "metrics/quality.h"
 #include "signal/spike_pipeline.h"
 #include "signal/spike_synth.h"
 #include "unity.h"
@@ -24,6 +26,8 @@ static sd_events_t g_ev[2];
 static sd_detector_t g_det;
 static sx_spikes_t g_sp;
 static sx_noise_t g_nz;
+static pca_work_t g_work;
+static pca_basis_t g_basis[2];
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -267,6 +271,48 @@ static void test_states_and_degenerate_input(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sp_push(NULL, g_x, 1u));
 }
 
+/* PCA and metrics straight from the compact int16 outputs equal the double
+ * entry points on the converted rows (no 200 kB double copy needed). */
+static void test_compact_outputs_feed_pca_and_metrics(void)
+{
+    size_t n_truth = 0u;
+    synth(7.0, 60.0, 0, 21u, N_MAX, &n_truth);
+    sd_config_t d;
+    sx_config_t x;
+    configs(SD_METHOD_WAVELET, &d, &x);
+    x.gain = 0.195; /* e.g. microvolts per count */
+    TEST_ASSERT_EQUAL_INT(MD_OK, run(&d, &x, N_MAX, 30u, 0u));
+    const sx_windows_t *w = &g_win[0];
+    const sx_snippets_t *z = &g_noise[0];
+    for (size_t i = 0u; i < w->n; ++i) {
+        TEST_ASSERT_EQUAL_INT(MD_OK, sx_window_to_double(w, i, g_sp.wave[i]));
+    }
+    for (size_t i = 0u; i < z->n; ++i) {
+        TEST_ASSERT_EQUAL_INT(MD_OK, sx_snippet_to_double(z, i, g_nz.wave[i]));
+    }
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(&g_sp.wave[0][0], w->n, MD_WAVE_LEN_MAX, w->d_w, 2u, &g_work, &g_basis[0]));
+    TEST_ASSERT_EQUAL_INT(MD_OK,
+                          pca_fit_i16(&w->wave[0][0], w->n, MD_WAVE_LEN_MAX, w->d_w, w->gain, 2u, &g_work, &g_basis[1]));
+    for (size_t j = 0u; j < 2u * w->d_w; ++j) {
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, g_basis[0].b[j], g_basis[1].b[j]);
+    }
+    double r0 = 0.0, r1 = 0.0, s0 = 0.0, s1 = 0.0, xi0[4], xi1[4];
+    TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_rms(&g_nz.wave[0][0], z->n, MD_WAVE_LEN_MAX, z->d_w, &r0));
+    TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_rms_i16(&z->wave[0][0], z->n, MD_WAVE_LEN_MAX, z->d_w, z->gain, &r1));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9 * r0, r0, r1);
+    TEST_ASSERT_DOUBLE_WITHIN(0.1 * 20.0 * x.gain, 20.0 * x.gain, r1); /* the synthetic noise RMS, in gain units */
+    TEST_ASSERT_EQUAL_INT(MD_OK, qm_snr(&g_sp.wave[0][0], w->n, MD_WAVE_LEN_MAX, w->d_w, NULL, 0u, r0, &s0, NULL));
+    TEST_ASSERT_EQUAL_INT(MD_OK,
+                          qm_snr_i16(&w->wave[0][0], w->n, MD_WAVE_LEN_MAX, w->d_w, w->gain, NULL, 0u, r1, &s1, NULL));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9 * s0, s0, s1);
+    TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_feature_cov(&g_basis[0], &g_nz.wave[0][0], z->n, MD_WAVE_LEN_MAX, xi0));
+    TEST_ASSERT_EQUAL_INT(MD_OK,
+                          qm_noise_feature_cov_i16(&g_basis[1], &z->wave[0][0], z->n, MD_WAVE_LEN_MAX, z->gain, xi1));
+    for (size_t j = 0u; j < 4u; ++j) {
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9 * xi0[0], xi0[j], xi1[j]);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -277,5 +323,6 @@ int main(void)
     RUN_TEST(test_offline_wrapper_agrees);
     RUN_TEST(test_overflow_is_counted);
     RUN_TEST(test_states_and_degenerate_input);
+    RUN_TEST(test_compact_outputs_feed_pca_and_metrics);
     return UNITY_END();
 }

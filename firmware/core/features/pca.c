@@ -9,13 +9,34 @@
 
 _Static_assert(MD_WAVE_LEN_MAX <= LINALG_MAX_N, "the covariance must fit the eigen-solver");
 
-/* Thesis footnote 5: Sigma = 1/(N-1) sum (x_i - xbar)(x_i - xbar)^T. */
-static void pca_covariance(const double *wave, size_t n, size_t stride, size_t d_w, double *mean, double *cov)
+/* Waveform rows from doubles or from compact int16 counts times a gain. */
+typedef struct {
+    const double *d;
+    const int16_t *s;
+    size_t stride;
+    double gain;
+} pca_src_t;
+
+static const double *pca_row(const pca_src_t *src, size_t i, size_t d_w, double *tmp)
 {
+    if (src->d != NULL) {
+        return &src->d[i * src->stride];
+    }
+    for (size_t j = 0u; j < d_w; ++j) {
+        tmp[j] = src->gain * (double)src->s[i * src->stride + j];
+    }
+    return tmp;
+}
+
+/* Thesis footnote 5: Sigma = 1/(N-1) sum (x_i - xbar)(x_i - xbar)^T. */
+static void pca_covariance(const pca_src_t *src, size_t n, size_t d_w, double *mean, double *cov)
+{
+    double tmp[MD_WAVE_LEN_MAX];
     memset(mean, 0, d_w * sizeof(double));
     for (size_t i = 0u; i < n; ++i) {
+        const double *x = pca_row(src, i, d_w, tmp);
         for (size_t a = 0u; a < d_w; ++a) {
-            mean[a] += wave[i * stride + a];
+            mean[a] += x[a];
         }
     }
     for (size_t a = 0u; a < d_w; ++a) {
@@ -23,7 +44,7 @@ static void pca_covariance(const double *wave, size_t n, size_t stride, size_t d
     }
     memset(cov, 0, d_w * d_w * sizeof(double));
     for (size_t i = 0u; i < n; ++i) {
-        const double *x = &wave[i * stride];
+        const double *x = pca_row(src, i, d_w, tmp);
         for (size_t a = 0u; a < d_w; ++a) {
             const double da = x[a] - mean[a];
             for (size_t b = a; b < d_w; ++b) {
@@ -63,22 +84,22 @@ static void pca_fix_sign(double *row, size_t d_w)
     }
 }
 
-md_status_t pca_fit(const double *wave, size_t n, size_t stride, size_t d_w, size_t d, pca_work_t *work,
-                    pca_basis_t *basis)
+static md_status_t pca_fit_src(const pca_src_t *src, size_t n, size_t d_w, size_t d, pca_work_t *work,
+                               pca_basis_t *basis)
 {
-    if ((wave == NULL) || (work == NULL) || (basis == NULL) || (d < 1u) || (d > MD_FEAT_DIM_MAX) || (d_w < d) ||
-        (d_w > MD_WAVE_LEN_MAX) || (stride < d_w) || (n > MD_MAX_SPIKES * 64u)) {
+    if ((work == NULL) || (basis == NULL) || (d < 1u) || (d > MD_FEAT_DIM_MAX) || (d_w < d) ||
+        (d_w > MD_WAVE_LEN_MAX) || (src->stride < d_w) || (n > MD_MAX_SPIKES * 64u) || !isfinite(src->gain)) {
         return MD_E_ARG;
     }
     if (n < 2u) {
         return MD_E_DEGENERATE;
     }
-    for (size_t i = 0u; i < n; ++i) {
-        if (!linalg_all_finite(&wave[i * stride], d_w)) {
+    for (size_t i = 0u; (src->d != NULL) && (i < n); ++i) {
+        if (!linalg_all_finite(&src->d[i * src->stride], d_w)) {
             return MD_E_NUMERIC;
         }
     }
-    pca_covariance(wave, n, stride, d_w, basis->mean, work->cov);
+    pca_covariance(src, n, d_w, basis->mean, work->cov);
     double trace = 0.0;
     for (size_t a = 0u; a < d_w; ++a) {
         trace += work->cov[a * d_w + a];
@@ -100,6 +121,47 @@ md_status_t pca_fit(const double *wave, size_t n, size_t stride, size_t d_w, siz
         }
         pca_fix_sign(row, d_w);
         basis->eigval[k] = fmax(work->vals[k], 0.0);
+    }
+    return MD_OK;
+}
+
+md_status_t pca_fit(const double *wave, size_t n, size_t stride, size_t d_w, size_t d, pca_work_t *work,
+                    pca_basis_t *basis)
+{
+    const pca_src_t src = {wave, NULL, stride, 1.0};
+    return (wave == NULL) ? MD_E_ARG : pca_fit_src(&src, n, d_w, d, work, basis);
+}
+
+md_status_t pca_fit_i16(const int16_t *wave, size_t n, size_t stride, size_t d_w, double gain, size_t d,
+                        pca_work_t *work, pca_basis_t *basis)
+{
+    const pca_src_t src = {NULL, wave, stride, gain};
+    return ((wave == NULL) || !(gain > 0.0)) ? MD_E_ARG : pca_fit_src(&src, n, d_w, d, work, basis);
+}
+
+md_status_t pca_project_i16(const pca_basis_t *basis, const int16_t *x, double gain, double *y)
+{
+    double row[MD_WAVE_LEN_MAX];
+    if ((basis == NULL) || (x == NULL) || (basis->d_w > MD_WAVE_LEN_MAX) || !isfinite(gain)) {
+        return MD_E_ARG;
+    }
+    for (size_t j = 0u; j < basis->d_w; ++j) {
+        row[j] = gain * (double)x[j];
+    }
+    return pca_project(basis, row, y);
+}
+
+md_status_t pca_project_all_i16(const pca_basis_t *basis, const int16_t *wave, size_t n, size_t stride, double gain,
+                                double *y)
+{
+    if ((basis == NULL) || (wave == NULL) || (y == NULL) || (stride < basis->d_w)) {
+        return MD_E_ARG;
+    }
+    for (size_t i = 0u; i < n; ++i) {
+        const md_status_t st = pca_project_i16(basis, &wave[i * stride], gain, &y[i * basis->d]);
+        if (st < 0) {
+            return st;
+        }
     }
     return MD_OK;
 }

@@ -17,6 +17,7 @@
 #define PCA_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "common/md_status.h"
 #include "md_config.h"
@@ -54,5 +55,18 @@ md_status_t pca_project(const pca_basis_t *basis, const double *x, double *y);
 /// Features of n waveforms (layout as in pca_fit) into y, packed n × d
 /// (the clustering's point layout). O(n d d_w).
 md_status_t pca_project_all(const pca_basis_t *basis, const double *wave, size_t n, size_t stride, double *y);
+
+/// pca_fit on compact windows (spike_extract.h sx_windows_t: int16 counts,
+/// physical value = gain * count), without a double copy of the interval.
+/// Same preconditions and result as pca_fit on the converted rows; gain > 0.
+md_status_t pca_fit_i16(const int16_t *wave, size_t n, size_t stride, size_t d_w, double gain, size_t d,
+                        pca_work_t *work, pca_basis_t *basis);
+
+/// Features of one compact window: y = B (gain * x). O(d d_w).
+md_status_t pca_project_i16(const pca_basis_t *basis, const int16_t *x, double gain, double *y);
+
+/// Features of n compact windows into y, packed n × d. O(n d d_w).
+md_status_t pca_project_all_i16(const pca_basis_t *basis, const int16_t *wave, size_t n, size_t stride, double gain,
+                                double *y);
 
 #endif

@@ -242,3 +242,99 @@ md_status_t qm_noise_feature_cov(const pca_basis_t *basis, const double *noise, 
     memcpy(chol, xi, d * d * sizeof(double));
     return linalg_cholesky(chol, d);
 }
+
+/* ---- compact (int16 counts times gain) entry points --------------------- */
+
+md_status_t qm_noise_rms_i16(const int16_t *noise, size_t m, size_t stride, size_t d_w, double gain, double *rms)
+{
+    if ((noise == NULL) || (rms == NULL) || (d_w == 0u) || (stride < d_w) || (m > QM_MAX_POINTS) ||
+        !(gain > 0.0) || !isfinite(gain)) {
+        return MD_E_ARG;
+    }
+    if (m == 0u) {
+        return MD_E_DEGENERATE;
+    }
+    uint64_t ss = 0u; /* exact: 2^20 points * 48 * 2^30 < 2^64 */
+    for (size_t i = 0u; i < m; ++i) {
+        for (size_t j = 0u; j < d_w; ++j) {
+            const int64_t v = noise[i * stride + j];
+            ss += (uint64_t)(v * v);
+        }
+    }
+    const double r = gain * sqrt((double)ss / (double)(m * d_w));
+    if (!(r > 0.0)) {
+        return MD_E_DEGENERATE;
+    }
+    *rms = r;
+    return MD_OK;
+}
+
+md_status_t qm_snr_i16(const int16_t *wave, size_t n, size_t stride, size_t d_w, double gain, const uint8_t *labels,
+                       uint8_t label, double noise_rms, double *snr, size_t *n_members)
+{
+    if ((wave == NULL) || (snr == NULL) || (d_w == 0u) || (stride < d_w) || (n > QM_MAX_POINTS) ||
+        !(noise_rms > 0.0) || !isfinite(noise_rms) || !(gain > 0.0) || !isfinite(gain)) {
+        return MD_E_ARG;
+    }
+    uint64_t sum_ptp = 0u;
+    size_t count = 0u;
+    for (size_t i = 0u; i < n; ++i) {
+        if ((labels != NULL) && (labels[i] != label)) {
+            continue;
+        }
+        const int16_t *x = &wave[i * stride];
+        int32_t lo = x[0];
+        int32_t hi = x[0];
+        for (size_t j = 1u; j < d_w; ++j) {
+            lo = (x[j] < lo) ? x[j] : lo;
+            hi = (x[j] > hi) ? x[j] : hi;
+        }
+        sum_ptp += (uint64_t)(hi - lo);
+        count++;
+    }
+    if (n_members != NULL) {
+        *n_members = count;
+    }
+    if (count == 0u) {
+        return MD_E_DEGENERATE;
+    }
+    *snr = gain * (double)sum_ptp / (double)count / noise_rms;
+    return MD_OK;
+}
+
+md_status_t qm_noise_feature_cov_i16(const pca_basis_t *basis, const int16_t *noise, size_t m, size_t stride,
+                                     double gain, double *xi)
+{
+    double mu[MD_FEAT_DIM_MAX];
+    double yv[MD_FEAT_DIM_MAX];
+    double chol[MD_FEAT_DIM_MAX * MD_FEAT_DIM_MAX];
+    if ((basis == NULL) || (noise == NULL) || (xi == NULL) || (basis->d == 0u) || (basis->d > MD_FEAT_DIM_MAX) ||
+        (stride < basis->d_w) || (m > QM_MAX_POINTS) || !(gain > 0.0)) {
+        return MD_E_ARG;
+    }
+    const size_t d = basis->d;
+    if (m < d + 1u) {
+        return MD_E_DEGENERATE;
+    }
+    memset(mu, 0, sizeof mu);
+    for (size_t i = 0u; i < m; ++i) { /* pass 1: mean feature */
+        const md_status_t st = pca_project_i16(basis, &noise[i * stride], gain, yv);
+        if (st < 0) {
+            return st;
+        }
+        for (size_t a = 0u; a < d; ++a) {
+            mu[a] += yv[a] / (double)m;
+        }
+    }
+    memset(xi, 0, d * d * sizeof(double));
+    for (size_t i = 0u; i < m; ++i) { /* pass 2: scatter about it */
+        (void)pca_project_i16(basis, &noise[i * stride], gain, yv);
+        for (size_t a = 0u; a < d; ++a) {
+            for (size_t b = 0u; b < d; ++b) {
+                xi[a * d + b] += (yv[a] - mu[a]) * (yv[b] - mu[b]) / (double)(m - 1u);
+            }
+        }
+    }
+    memcpy(chol, xi, d * d * sizeof(double));
+    return linalg_cholesky(chol, d);
+}

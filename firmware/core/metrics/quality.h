@@ -65,4 +65,18 @@ md_status_t qm_feature_cov(const double *y, size_t m, size_t d, double *mean, do
 md_status_t qm_noise_feature_cov(const pca_basis_t *basis, const double *noise, size_t m, size_t stride,
                                  double *xi);
 
+/* Compact inputs (spike_extract.h: int16 counts, physical value = gain *
+ * count): same results as the double entry points on the converted rows. */
+
+/// qm_noise_rms on compact snippets (exact integer sum of squares). gain > 0.
+md_status_t qm_noise_rms_i16(const int16_t *noise, size_t m, size_t stride, size_t d_w, double gain, double *rms);
+
+/// qm_snr on compact windows. gain > 0.
+md_status_t qm_snr_i16(const int16_t *wave, size_t n, size_t stride, size_t d_w, double gain, const uint8_t *labels,
+                       uint8_t label, double noise_rms, double *snr, size_t *n_members);
+
+/// qm_noise_feature_cov on compact snippets. gain > 0.
+md_status_t qm_noise_feature_cov_i16(const pca_basis_t *basis, const int16_t *noise, size_t m, size_t stride,
+                                     double gain, double *xi);
+
 #endif
