@@ -1,5 +1,5 @@
-/* Unit: spike_detect (+ spike_synth) — streaming detection on traces with
- * known spike times.
+/* Unit: spike_detect (+ spike_synth) — streaming detection (sd_stream_t) on
+ * traces with known spike times, and the offline wrapper sd_detector_t.
  *
  * SNR here is exactly the SNR metric of the thesis (§2.2.2.4): template
  * peak-to-peak amplitude / RMS of the noise. A detection within 0.5 ms of a
@@ -33,13 +33,35 @@ typedef struct {
     size_t fp;
 } score_t;
 
+static sd_stream_t g_st;
+
+/* Streams x through sd_stream_t in chunks of `chunk` samples (the
+ * firmware path); the offline wrapper sd_detector_t is tested below. */
 static md_status_t detect(const sd_config_t *cfg, const int16_t *x, size_t n, size_t chunk, sd_events_t *ev)
 {
-    md_status_t st = sd_init(&g_det, cfg, g_buf, TRACE_MAX);
+    md_status_t st = sd_stream_init(&g_st, cfg);
     for (size_t i = 0u; (st == MD_OK) && (i < n); i += chunk) {
-        st = sd_push(&g_det, &x[i], (n - i < chunk) ? (n - i) : chunk);
+        const size_t len = (n - i < chunk) ? (n - i) : chunk;
+        size_t off = 0u;
+        for (size_t it = 0u; (st == MD_OK) && (it < 4u * len + SD_WARMUP_MAX) && (off < len || sd_stream_busy(&g_st));
+             ++it) {
+            size_t used = 0u;
+            st = sd_stream_push(&g_st, &x[i + off], len - off, &used);
+            off += used;
+        }
     }
-    return (st == MD_OK) ? sd_finish(&g_det, ev) : st;
+    if (st == MD_OK) {
+        st = sd_stream_end(&g_st);
+    }
+    for (size_t it = 0u; (st == MD_OK) && (it < SD_WARMUP_MAX) && sd_stream_busy(&g_st); ++it) {
+        size_t used = 0u;
+        st = sd_stream_push(&g_st, NULL, 0u, &used);
+    }
+    if (st == MD_OK) {
+        st = sd_stream_finish(&g_st);
+    }
+    *ev = *sd_stream_events(&g_st);
+    return st;
 }
 
 /* Synthesises one trace, detects with `method` (defaults), adds to `sc`. */
