@@ -17,9 +17,10 @@
  * ln of the largest cost ratio double precision can express (about 36.74), so
  * L = +-0.2 moves ln(cost ratio) by about +-7.3. */
 #define SD_L_SCALE 36.7368
-/* Box width of a scale tuned to spike width W: the second difference of a
- * linear B-spline of box w correlates best (>= 0.98) with a Mexican hat of
- * envelope 1.6 w / ... i.e. w = 1.6 * (W / 4) * fs = 0.4 W fs. */
+/* Box width of a scale tuned to spike width W: round one's Mexican hat had
+ * envelope W/4; the second difference of a linear B-spline of box w
+ * correlates best (>= 0.98) with a Mexican hat of envelope w/1.6, so
+ * w = 1.6 * (W / 4) * fs = 0.4 W fs. */
 #define SD_BOX_PER_WIDTH 0.4
 #define SD_NONE 0xFFFFFFFFu
 #define SD_DECIMATE_BOX 4u /* boxes this wide are evaluated at every 2nd centre */
