@@ -156,7 +156,7 @@ static void test_capacity_state_and_arguments(void)
     sd_config_default(&cfg, SD_METHOD_WAVELET, FS_HZ);
     cfg.cost_ratio_l = 0.5;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sd_init(&g_det, &cfg, small, 64u));
-    sd_config_default(&cfg, SD_METHOD_WAVELET, 200000u); /* 1 ms at 200 kHz exceeds SD_TAPS_MAX */
+    sd_config_default(&cfg, SD_METHOD_WAVELET, 200000u); /* 1 ms at 200 kHz exceeds SD_BOX_MAX (and the warm-up SD_WARMUP_MAX) */
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sd_init(&g_det, &cfg, small, 64u));
 }
 
