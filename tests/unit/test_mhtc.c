@@ -234,6 +234,18 @@ static void test_ids_monotonic_and_pool_shared(void)
     }
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1.0, sum);
     TEST_ASSERT_TRUE(g_st.next_id > 2u);
+    /* the leading hypothesis' labels are retrievable like any survivor's, and parents are valid */
+    static uint8_t lab[N_MAX];
+    int32_t ct[MHTC_G_MAX];
+    size_t g = 0u;
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_hyp_labels(&g_st, &g_ws, 0u, 114u, lab, ct, &g));
+    TEST_ASSERT_EQUAL_size_t(g_out.g, g);
+    TEST_ASSERT_EQUAL_MEMORY(g_out.labels, lab, 114u);
+    TEST_ASSERT_EQUAL_MEMORY(g_out.cluster_track, ct, sizeof ct);
+    for (size_t h = 0u; h < g_st.n_hyp; ++h) {
+        TEST_ASSERT_TRUE(g_st.hyp[h].parent < MHTC_L_MAX);
+    }
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_hyp_labels(&g_st, &g_ws, g_st.n_hyp, 114u, lab, ct, &g));
     TEST_MESSAGE("pool sharing verified");
 }
 

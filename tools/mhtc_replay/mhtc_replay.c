@@ -58,6 +58,20 @@ static mhtc_state_t g_st;
 static mhtc_workspace_t g_ws;
 static mhtc_result_t g_res;
 static uint32_t g_id_intervals[RP_MAX_IDS];
+
+/// What one interval's survivors said, kept to relabel by the final best lineage.
+typedef struct {
+    uint32_t k;
+    uint64_t start;
+    size_t n;
+    uint32_t *t;                                  ///< spike times (heap)
+    size_t n_hyp;
+    uint8_t parent[MHTC_L_MAX];
+    int32_t ct[MHTC_L_MAX][MHTC_G_MAX];
+    uint8_t *labels;                              ///< n_hyp × n (heap)
+} rp_lineage_t;
+
+static rp_lineage_t g_lin[RP_MAX_INTERVALS];
 static double g_step_ms[RP_MAX_INTERVALS];
 
 static int rp_usage(const char *msg)
@@ -255,7 +269,7 @@ static void rp_write_interval(FILE *jl, FILE *lab, uint32_t k, const rp_interval
     rp_json_tracks(jl, &g_res, (noise_rms > 0.0) ? noise_rms : 1.0);
     rp_json_hyps(jl, &g_res);
     (void)fprintf(jl, "}\n");
-    for (size_t i = 0u; i < g_spk.n; ++i) {
+    for (size_t i = 0u; i < g_spk.n; ++i) { /* online: the leading hypothesis of interval k */
         const uint8_t c = g_res.labels[i];
         const int id = (c > 0u) ? (int)g_res.cluster_track[c - 1u] : -1;
         (void)fprintf(lab, "%llu,%u,%u,%d\n", (unsigned long long)(iv->start_sample + g_spk.t[i]), k, c,
@@ -265,6 +279,51 @@ static void rp_write_interval(FILE *jl, FILE *lab, uint32_t k, const rp_interval
         if ((g_res.track[j].cluster > 0u) && (g_res.track[j].id < RP_MAX_IDS)) {
             g_id_intervals[g_res.track[j].id]++;
         }
+    }
+}
+
+/* Keeps every survivor's labels of this step (0 on success). */
+static int rp_keep_lineage(rp_lineage_t *l, uint32_t k, uint64_t start)
+{
+    l->k = k;
+    l->start = start;
+    l->n = g_spk.n;
+    l->n_hyp = g_st.n_hyp;
+    l->t = malloc((g_spk.n + 1u) * sizeof *l->t);
+    l->labels = malloc((l->n_hyp * g_spk.n + 1u) * sizeof *l->labels);
+    if ((l->t == NULL) || (l->labels == NULL)) {
+        return -1;
+    }
+    memcpy(l->t, g_spk.t, g_spk.n * sizeof *l->t);
+    for (size_t h = 0u; h < l->n_hyp; ++h) {
+        size_t g = 0u;
+        l->parent[h] = g_st.hyp[h].parent;
+        if (mhtc_hyp_labels(&g_st, &g_ws, h, g_spk.n, &l->labels[h * g_spk.n], l->ct[h], &g) != MD_OK) {
+            return -1;
+        }
+    }
+    return 0;
+}
+
+/* labels.csv by the final best hypothesis: follow parents back from the last leader (§4.5, Fig. 4.4). */
+static void rp_write_final_labels(FILE *lab, uint32_t done)
+{
+    size_t h = 0u;
+    static size_t chosen[RP_MAX_INTERVALS];
+    for (uint32_t i = done; i-- > 0u;) {
+        chosen[i] = (h < g_lin[i].n_hyp) ? h : 0u;
+        h = g_lin[i].parent[chosen[i]];
+    }
+    for (uint32_t i = 0u; i < done; ++i) {
+        const rp_lineage_t *l = &g_lin[i];
+        for (size_t s = 0u; s < l->n; ++s) {
+            const uint8_t c = l->labels[chosen[i] * l->n + s];
+            const int id = (c > 0u) ? (int)l->ct[chosen[i]][c - 1u] : -1;
+            (void)fprintf(lab, "%llu,%u,%u,%d\n", (unsigned long long)(l->start + l->t[s]), l->k, c,
+                          (id > 0) ? id : -1);
+        }
+        free(l->t);
+        free(l->labels);
     }
 }
 
@@ -402,6 +461,10 @@ static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32
             (void)fprintf(stderr, "mhtc-replay: interval %u: tracker step failed: %s\n", k, md_status_name(st));
             continue;
         }
+        if (rp_keep_lineage(&g_lin[*done], k, iv->start_sample) != 0) {
+            (void)fprintf(stderr, "mhtc-replay: out of memory\n");
+            return 1;
+        }
         g_step_ms[*done] = ms;
         (*done)++;
         *spikes += g_spk.n;
@@ -425,7 +488,7 @@ int main(int argc, char **argv)
     int16_t *det_buf = NULL;
     int rc = rp_setup(&o, &x, &det_buf);
     FILE *jl = (rc == 0) ? rp_open_out(o.out, "intervals.jsonl") : NULL;
-    FILE *lab = (jl != NULL) ? rp_open_out(o.out, "labels.csv") : NULL;
+    FILE *lab = (jl != NULL) ? rp_open_out(o.out, "labels_online.csv") : NULL;
     rc = (lab == NULL) ? 1 : rc;
     uint32_t done = 0u;
     size_t spikes = 0u;
@@ -433,6 +496,13 @@ int main(int argc, char **argv)
         (void)fprintf(lab, "sample_index,interval,cluster,track_id\n");
         rc = rp_run(&o, x, jl, lab, &done, &spikes);
     }
+    FILE *fin = (rc == 0) ? rp_open_out(o.out, "labels.csv") : NULL;
+    if (fin != NULL) {
+        (void)fprintf(fin, "sample_index,interval,cluster,track_id\n");
+        rp_write_final_labels(fin, done);
+        (void)fclose(fin);
+    }
+    rc = ((rc == 0) && (fin == NULL)) ? 1 : rc;
     FILE *sum = (rc == 0) ? rp_open_out(o.out, "summary.json") : NULL;
     if (sum != NULL) {
         rp_write_summary(sum, &o, done, spikes);

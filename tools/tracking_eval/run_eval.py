@@ -13,6 +13,8 @@ tracker on it, and the labels are scored against ground_truth.csv:
 
 usage: run_eval.py BUILD_DIR [--seeds 1,2,3] [--scenarios a,b] [--trackers mhtc,map-nn,ml-nn,gnn]
                    [--work DIR] [--jobs N]
+labels.csv is the final best hypothesis' lineage (delayed decision, offline);
+labels_online.csv the leading hypothesis of each interval as it was then. Both are scored.
 Prints a markdown table (stdout) and writes DIR/results.json. Standard library only.
 """
 import argparse
@@ -25,6 +27,7 @@ import os
 import subprocess
 import sys
 
+Q_UV = 10.0  # process noise of the replay (--q-uv), set by --q-uv here
 MATCH_MS = 0.5
 MIN_SPIKES = 10
 DEFAULT_SCENARIOS = ["intermittent_neuron", "appearing_neuron", "drifting_pair", "crossing_clusters", "drift_away"]
@@ -41,12 +44,12 @@ def load_truth(rec_dir, channel=0):
     return samples, neurons
 
 
-def score(rec_dir, out_dir, fs):
+def score(rec_dir, out_dir, fs, labels="labels.csv"):
     samples, neurons = load_truth(rec_dir)
     tol = int(round(MATCH_MS * 1e-3 * fs))
     votes = collections.defaultdict(collections.Counter)  # (neuron, interval) -> Counter(track_id)
     all_ids = set()
-    with open(os.path.join(out_dir, "labels.csv")) as f:
+    with open(os.path.join(out_dir, labels)) as f:
         for row in csv.DictReader(f):
             s, k, tid = int(row["sample_index"]), int(row["interval"]), int(row["track_id"])
             if tid > 0:
@@ -78,13 +81,15 @@ def run_one(build, work, scenario, seed, tracker):
     rec_dir = os.path.join(work, f"{scenario}-s{seed}")
     out_dir = os.path.join(work, "out", f"{scenario}-s{seed}-{tracker}")
     cmd = [os.path.join(build, "bin", "mhtc-replay"), "--recording", os.path.join(rec_dir, "recording.json"),
-           "--out", out_dir, "--tracker", tracker, "--quiet"]
+           "--out", out_dir, "--tracker", tracker, "--quiet", "--q-uv", str(Q_UV)]
     subprocess.run(cmd, check=True)
     with open(os.path.join(rec_dir, "recording.json")) as f:
         fs = json.load(f)["sampling_frequency"]
     with open(os.path.join(out_dir, "summary.json")) as f:
         summ = json.load(f)
     r = score(rec_dir, out_dir, fs)
+    online = score(rec_dir, out_dir, fs, "labels_online.csv")
+    r.update(online_consistent=online["consistent"], online_spurious=online["spurious"])
     r.update(scenario=scenario, seed=seed, tracker=tracker, step_ms_median=summ["step_ms_median"])
     return r
 
@@ -97,7 +102,10 @@ def main():
     ap.add_argument("--trackers", default="mhtc,map-nn,ml-nn,gnn")
     ap.add_argument("--work", default="/tmp/tracking-eval")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--q-uv", type=float, default=10.0)
     a = ap.parse_args()
+    global Q_UV
+    Q_UV = a.q_uv
     seeds = [int(s) for s in a.seeds.split(",")]
     scenarios = a.scenarios.split(",")
     trackers = a.trackers.split(",")
@@ -114,8 +122,9 @@ def main():
         results = list(ex.map(lambda j: run_one(a.build, a.work, *j), jobs))
     with open(os.path.join(a.work, "results.json"), "w") as f:
         json.dump(results, f, indent=1)
-    print("| scenario | tracker | neuron-intervals | ID consistency | spurious tracks | track IDs | median step (ms) |")
-    print("|---|---|---:|---:|---:|---:|---:|")
+    print("| scenario | tracker | neuron-intervals | ID consistency | spurious tracks | ID consistency (online) "
+          "| spurious (online) | track IDs | median step (ms) |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
     for sc in scenarios + ["all"]:
         for t in trackers:
             rs = [r for r in results if r["tracker"] == t and (sc == "all" or r["scenario"] == sc)]
@@ -123,8 +132,10 @@ def main():
             cons = sum(r["consistent"] for r in rs)
             med = sorted(r["step_ms_median"] for r in rs)[len(rs) // 2]
             name = f"**{sc}**" if sc == "all" else sc
+            ocons = sum(r["online_consistent"] for r in rs)
             print(f"| {name} | {t} | {pres} | {cons / pres if pres else 0:.3f} | "
-                  f"{sum(r['spurious'] for r in rs)} | {sum(r['ids'] for r in rs)} | {med:.1f} |")
+                  f"{sum(r['spurious'] for r in rs)} | {ocons / pres if pres else 0:.3f} | "
+                  f"{sum(r['online_spurious'] for r in rs)} | {sum(r['ids'] for r in rs)} | {med:.1f} |")
     return 0
 
 

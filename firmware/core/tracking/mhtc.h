@@ -120,6 +120,8 @@ typedef struct {
     uint8_t hist_g[MHTC_HIST_MAX];           ///< G per interval, newest first
     int32_t hist_id[MHTC_HIST_MAX][MHTC_G_MAX]; ///< track ID of each cluster (MHTC_ID_FALSE), newest first
     uint8_t rank_hist[MHTC_HIST_MAX];        ///< rank (1 = leading) of this lineage, newest first
+    uint8_t parent;                          ///< index of its parent in the previous generation
+    uint8_t model;                           ///< workspace model slot of the latest step
 } mhtc_hyp_t;
 
 /// Counters: every failure or forced decision is counted, nothing is silent.
@@ -252,6 +254,15 @@ md_status_t mhtc_init(mhtc_state_t *st, const mhtc_config_t *cfg);
 /// earlier intervals, NULLs, non-finite values). Worst case
 /// O(L · g_max · EM + L² g_max · Murty); ws is the shared workspace.
 md_status_t mhtc_step(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_result_t *out);
+
+/// Spike labels and cluster→track IDs of surviving hypothesis h (0 = leading)
+/// as of the latest successful mhtc_step with this ws (valid until the next
+/// step). labels: n values (the step's n), 0 = outlier; cluster_track:
+/// MHTC_G_MAX values, MHTC_ID_FALSE for false clusters; *g: clusters of its
+/// model. Lets an offline caller relabel intervals by the final best lineage
+/// (follow mhtc_hyp_t.parent back). MD_E_ARG if h or n is out of range.
+md_status_t mhtc_hyp_labels(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t h, size_t n,
+                            uint8_t *labels, int32_t *cluster_track, size_t *g);
 
 /// Short name of a tracker ("mhtc", "map-nn", "ml-nn", "gnn").
 const char *mhtc_tracker_name(mhtc_tracker_t tracker);

@@ -277,6 +277,8 @@ static void mhtc_build_child(const mhtc_state_t *st, mhtc_workspace_t *ws, const
     h->log_p3 = m->log_p3;
     h->log_p4 = m->log_ev;
     h->g = m->g;
+    h->parent = m->parent;
+    h->model = c->model;
     int32_t tag[MHTC_G_MAX];
     memcpy(tag, c->tag, sizeof tag);
     for (size_t k = 0u; k < nk; ++k) {
@@ -410,5 +412,23 @@ md_status_t mhtc_commit(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace
     st->interval++;
     st->stats.steps++;
     mhtc_report(st, in, ws, cand_of_child[0], out);
+    return MD_OK;
+}
+
+md_status_t mhtc_hyp_labels(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t h, size_t n,
+                            uint8_t *labels, int32_t *cluster_track, size_t *g)
+{
+    if ((st == NULL) || (ws == NULL) || (labels == NULL) || (cluster_track == NULL) || (g == NULL) ||
+        (h >= st->n_hyp) || (n > EM_N_MAX) || (st->hyp[h].model >= ws->n_models)) {
+        return MD_E_ARG;
+    }
+    const mhtc_model_t *m = &ws->model[st->hyp[h].model];
+    *g = m->g;
+    memcpy(cluster_track, st->hyp[h].hist_id[0], MHTC_G_MAX * sizeof cluster_track[0]);
+    if (m->g == 0u) {
+        memset(labels, 0, n * sizeof labels[0]);
+    } else {
+        memcpy(labels, m->labels, n * sizeof labels[0]);
+    }
     return MD_OK;
 }
