@@ -25,19 +25,19 @@ fail() { echo "FAIL: $*" >&2; exit 1; }
 cat "$tmp/out.csv"
 
 # 1-4 in one pass over the CSV (columns: see the header check)
-head -n 1 "$tmp/out.csv" | grep -q '^scenario,seed,channel,k,depth_um,n_spikes,n_noise,n_true,true_ids,n_targets,g_map,p_map,acc_map,g_ml,p_ml,acc_ml,det_overflow$' \
+head -n 1 "$tmp/out.csv" | grep -q '^scenario,seed,channel,k,depth_um,n_spikes,n_false,n_noise,n_true,true_ids,n_targets,g_map,p_map,acc_map,g_ml,p_ml,acc_ml,det_overflow$' \
     || fail "unexpected header"
 awk -F, 'NR == 1 { next }
     {
         rows++
         if ($4 != rows - 1) { print "row " rows ": interval " $4; bad = 1 }
-        if ($11 < 0 || $11 > 4 || $14 < 0 || $14 > 4) { print "k=" $4 ": G out of range"; bad = 1 }
-        if ($13 < 0 || $13 > 1 || $16 < 0 || $16 > 1) { print "k=" $4 ": accuracy out of range"; bad = 1 }
-        if ($8 != 3 || $9 != "0;1;2") { print "k=" $4 ": n_true " $8 " ids " $9; bad = 1 }
-        if ($4 == 0 && $10 != 0) { print "k=0 has targets"; bad = 1 }
-        if ($4 > 0 && prev_g > 0 && $10 < 1) { print "k=" $4 ": no targets after a clustered interval"; bad = 1 }
-        if ($4 > 0) { psi_map += ($11 > prev_g ? $11 - prev_g : prev_g - $11); psi_ml += ($14 > prev_ml ? $14 - prev_ml : prev_ml - $14) }
-        prev_g = $11; prev_ml = $14
+        if ($12 < 0 || $12 > 4 || $15 < 0 || $15 > 4) { print "k=" $4 ": G out of range"; bad = 1 }
+        if ($14 < 0 || $14 > 1 || $17 < 0 || $17 > 1) { print "k=" $4 ": accuracy out of range"; bad = 1 }
+        if ($9 != 3 || $10 != "0;1;2") { print "k=" $4 ": n_true " $9 " ids " $10; bad = 1 }
+        if ($4 == 0 && $11 != 0) { print "k=0 has targets"; bad = 1 }
+        if ($4 > 0 && prev_g > 0 && $11 < 1) { print "k=" $4 ": no targets after a clustered interval"; bad = 1 }
+        if ($4 > 0) { psi_map += ($12 > prev_g ? $12 - prev_g : prev_g - $12); psi_ml += ($15 > prev_ml ? $15 - prev_ml : prev_ml - $15) }
+        prev_g = $12; prev_ml = $15
     }
     END {
         if (rows != 6) { print "rows: " rows; bad = 1 }

@@ -434,9 +434,13 @@ static void print_row(const cc_recording_t *rec, const cc_options_t *o, uint32_t
 {
     char ids[256];
     const uint32_t n_true = true_count(d, ids, sizeof ids);
-    printf("%s,%llu,%u,%u,%.2f,%zu,%zu,%u,%s,%zu,%zu,%.4f,%.4f,%zu,%.4f,%.4f,%u\n", rec->scenario,
-           (unsigned long long)rec->seed, o->channel, k, rec->iv[k].depth_um[o->channel], d->spk.n, noise.n, n_true,
-           ids, n_targets, map->g, map->p, map->acc, ml->g, ml->p, ml->acc, ev.n_overflow);
+    size_t n_false = 0u;
+    for (size_t i = 0u; i < d->spk.n; ++i) {
+        n_false += (d->truth_of[i] < 0) ? 1u : 0u;
+    }
+    printf("%s,%llu,%u,%u,%.2f,%zu,%zu,%zu,%u,%s,%zu,%zu,%.4f,%.4f,%zu,%.4f,%.4f,%u\n", rec->scenario,
+           (unsigned long long)rec->seed, o->channel, k, rec->iv[k].depth_um[o->channel], d->spk.n, n_false, noise.n,
+           n_true, ids, n_targets, map->g, map->p, map->acc, ml->g, ml->p, ml->acc, ev.n_overflow);
 }
 
 static int run(const cc_options_t *o, const cc_recording_t *rec, const cc_truth_t *truth, int16_t *x, size_t cap)
@@ -527,7 +531,7 @@ int main(int argc, char **argv)
     }
     if (o.header) {
         printf(o.drift ? "k,neuron,dq2_uv2\n"
-                       : "scenario,seed,channel,k,depth_um,n_spikes,n_noise,n_true,true_ids,n_targets,g_map,p_map,"
+                       : "scenario,seed,channel,k,depth_um,n_spikes,n_false,n_noise,n_true,true_ids,n_targets,g_map,p_map,"
                          "acc_map,g_ml,p_ml,acc_ml,det_overflow\n");
     }
     const int rc = run(&o, &rec, &truth, x, cap);

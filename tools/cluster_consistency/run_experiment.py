@@ -93,6 +93,7 @@ def run_stats(rows):
         "mean_map": sum(g_map) / k, "mean_ml": sum(g_ml) / k, "mean_true": sum(truth) / k,
         "err_map": err(g_map), "err_ml": err(g_ml), "exact_map": exact(g_map), "exact_ml": exact(g_ml),
         "acc_map": sum(float(r["acc_map"]) for r in rows) / k, "acc_ml": sum(float(r["acc_ml"]) for r in rows) / k,
+        "spikes": sum(int(r["n_spikes"]) for r in rows) / k, "false": sum(int(r["n_false"]) for r in rows) / k,
     }
 
 
@@ -110,7 +111,7 @@ def aggregate(stats):
     for key in ("psi_map", "psi_ml", "psi_true"):
         agg[key] = sum(s[key] for s in stats)
     for key in ("mean_map", "mean_ml", "mean_true", "err_map", "err_ml", "exact_map", "exact_ml", "acc_map",
-                "acc_ml"):
+                "acc_ml", "spikes", "false"):
         agg[key] = sum(s[key] * s["K"] for s in stats) / k
     return agg
 
@@ -144,8 +145,8 @@ def tables(results, q_by_scen, q_scales, calib, seeds):
     out.append("")
     out.append("### Aggregated\n")
     out.append("| scenario | q scale | runs | intervals | Ψ MAP | Ψ ML | MAP vs ML | Ψ truth | mean Ĝ MAP | mean Ĝ ML "
-               "| mean N true | mean abs(Ĝ−N) MAP | ML | Ĝ = N MAP | ML | accuracy MAP | ML |")
-    out.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+               "| mean N true | mean abs(Ĝ−N) MAP | ML | Ĝ = N MAP | ML | accuracy MAP | ML | detections per interval (false) |")
+    out.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for scale in q_scales:
         groups = [(scen, [results[(scen, sd, scale)] for sd in seeds]) for scen in SCENARIOS]
         groups.append(("**all**", [st for _, lst in groups for st in lst]))
@@ -154,7 +155,8 @@ def tables(results, q_by_scen, q_scales, calib, seeds):
             out.append(f"| {name} | {scale:g} | {a['runs']} | {a['K']} | {a['psi_map']} | {a['psi_ml']} "
                        f"| {rel(a['psi_map'], a['psi_ml'])} | {a['psi_true']} | {a['mean_map']:.2f} | {a['mean_ml']:.2f} "
                        f"| {a['mean_true']:.2f} | {a['err_map']:.2f} | {a['err_ml']:.2f} | {100 * a['exact_map']:.0f} % "
-                       f"| {100 * a['exact_ml']:.0f} % | {100 * a['acc_map']:.0f} % | {100 * a['acc_ml']:.0f} % |")
+                       f"| {100 * a['exact_ml']:.0f} % | {100 * a['acc_map']:.0f} % | {100 * a['acc_ml']:.0f} % "
+                       f"| {a['spikes']:.0f} ({a['false']:.0f}) |")
     return "\n".join(out) + "\n"
 
 
@@ -179,6 +181,7 @@ def main():
     ap.add_argument("--map-evidence", default="laplace", choices=["laplace", "bic"],
                     help="evidence of the MAP method (thesis: laplace; bic is a diagnostic)")
     ap.add_argument("--update-doc", default=None)
+    ap.add_argument("--source-rev", default=None, help="source revision to print (default: git describe --dirty)")
     args = ap.parse_args()
     SCENARIOS[:] = [s for s in args.scenarios.split(",") if s]
     bindir = os.path.join(args.build, "bin")
@@ -208,12 +211,15 @@ def main():
                     results[(sc, sd, f)] = run_stats(rows_by_q[q_by_scen[sc][0] * f])
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
-    rev = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True).stdout.strip()
+    rev = args.source_rev or subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True,
+                                            text=True).stdout.strip()
     text = f"Source: `{rev or 'unknown'}`. MAP evidence: {args.map_evidence}; ML: BIC.\n\n" + tables(results, q_by_scen, q_scales, f"{calib[0]}–{calib[-1]}" if len(calib) > 1 else str(calib[0]), seeds)
     print(text)
     if args.update_doc:
-        cmd = " ".join(["tools/cluster_consistency/run_experiment.py"] +
-                       [a for a in sys.argv[1:]])
+        cmd = (f"tools/cluster_consistency/run_experiment.py --build BUILD --seeds {args.seeds} "
+               f"--calib-seeds {args.calib_seeds} --q-scales {args.q_scales} --map-evidence {args.map_evidence} "
+               f"--update-doc docs/clustering-consistency.md` (BUILD: a Release host build of that revision, e.g. "
+               f"`cmake --preset release && cmake --build build/release`")
         update_doc(args.update_doc, text, cmd)
 
 
