@@ -46,7 +46,8 @@ static md_status_t em_build_cache(const em_params_t *p, em_cache_t *c)
         for (size_t k = 0u; k < d * d; ++k) {
             sigma[k] = p->lambda * p->shape[g][k];
         }
-        memcpy(c->chol[g], sigma, sizeof sigma);
+        /* cppcheck-suppress uninitvar ; the loop above set the d x d elements copied */
+        memcpy(c->chol[g], sigma, d * d * sizeof sigma[0]); /* only the d x d part is set */
         if ((linalg_cholesky(c->chol[g], d) != MD_OK) ||
             (linalg_spd_inverse(sigma, d, c->inv[g], work, NULL) != MD_OK)) {
             return MD_E_NUMERIC;

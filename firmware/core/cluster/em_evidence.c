@@ -81,19 +81,25 @@ static void em_shape_poly(size_t d, const double *x, double *mr, double g[2][EM_
     g[0][0] = x[3];
     g[0][1] = -2.0 * x[1];
     g[0][3] = x[0];
-    h[0][0][3] = h[0][3][0] = 1.0;
+    h[0][0][3] = 1.0;
+    h[0][3][0] = h[0][0][3];
     h[0][1][1] = -2.0;
     g[1][0] = -x[4] * x[4];
     g[1][1] = 2.0 * x[2] * x[4];
     g[1][2] = 2.0 * x[1] * x[4] - 2.0 * x[3] * x[2];
     g[1][3] = -x[2] * x[2];
     g[1][4] = -2.0 * x[0] * x[4] + 2.0 * x[1] * x[2];
-    h[1][0][4] = h[1][4][0] = -2.0 * x[4];
-    h[1][1][2] = h[1][2][1] = 2.0 * x[4];
-    h[1][1][4] = h[1][4][1] = 2.0 * x[2];
+    h[1][0][4] = -2.0 * x[4];
+    h[1][4][0] = h[1][0][4];
+    h[1][1][2] = 2.0 * x[4];
+    h[1][2][1] = h[1][1][2];
+    h[1][1][4] = 2.0 * x[2];
+    h[1][4][1] = h[1][1][4];
     h[1][2][2] = -2.0 * x[3];
-    h[1][2][3] = h[1][3][2] = -2.0 * x[2];
-    h[1][2][4] = h[1][4][2] = 2.0 * x[1];
+    h[1][2][3] = -2.0 * x[2];
+    h[1][3][2] = h[1][2][3];
+    h[1][2][4] = 2.0 * x[1];
+    h[1][4][2] = h[1][2][4];
     h[1][4][4] = -2.0 * x[0];
 }
 
@@ -138,8 +144,10 @@ static md_status_t em_shape_build(size_t d, const double *x, em_shape_t *s)
         size_t i = 0u;
         size_t j = 0u;
         em_free_rc(d, t, &i, &j);
-        s->c[i * d + j] = s->c[j * d + i] = x[t];
-        s->dc[t][i * d + j] = s->dc[t][j * d + i] = 1.0;
+        s->c[i * d + j] = x[t];
+        s->c[j * d + i] = s->c[i * d + j];
+        s->dc[t][i * d + j] = 1.0;
+        s->dc[t][j * d + i] = s->dc[t][i * d + j];
         s->dc[t][d * d - 1u] += ft[t];
     }
     double l[EM_D_MAX * EM_D_MAX];
@@ -230,7 +238,8 @@ static md_status_t em_comp_first(const em_shape_t *sh, size_t d, double lambda,
     for (size_t e = 0u; e < d * d; ++e) {
         sigma[e] = lambda * sh->c[e];
     }
-    memcpy(cd->chol, sigma, sizeof sigma);
+    /* cppcheck-suppress uninitvar ; the loop above set the d x d elements copied */
+    memcpy(cd->chol, sigma, d * d * sizeof sigma[0]); /* only the d x d part is set */
     if ((linalg_cholesky(cd->chol, d) != MD_OK) ||
         (linalg_spd_inverse(sigma, d, cd->sigma_inv, work, NULL) != MD_OK)) {
         return MD_E_NUMERIC;

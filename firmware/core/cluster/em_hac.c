@@ -137,7 +137,7 @@ md_status_t em_hac_cut(em_hac_work_t *ws, size_t g, uint8_t *labels)
         const uint16_t rb = em_hac_find(ws->parent, ws->merge_b[m], n);
         ws->parent[rb] = ra;
     }
-    uint16_t root_of[EM_G_MAX];
+    uint16_t root_of[EM_G_MAX] = {0u};
     size_t found = 0u;
     for (size_t i = 0u; i < n; ++i) {
         const uint16_t r = em_hac_find(ws->parent, (uint16_t)i, n);

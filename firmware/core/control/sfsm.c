@@ -241,7 +241,8 @@ static bool sfsm_cond_holds(const sfsm_t *sm, const sfsm_input_t *in, const sfsm
     case SFSM_C_SNR_DROP: return v && sm->has_ref && f->ours && (in->snr < k->snr_drop_frac * sm->ref_snr);
     case SFSM_C_SNR_RESTORED: return v && sm->has_ref && f->ours && (in->snr >= sm->ref_snr);
     case SFSM_C_OTHER_DOMINANT: return v && f->dom && !f->ours;
-    case SFSM_COND_COUNT: return false;
+    case SFSM_COND_COUNT: /* MISRA 16.4 default; -Wswitch-enum still checks every enumerator */
+    default: return false;
     }
     return false;
 }
@@ -288,7 +289,8 @@ static double sfsm_policy(const sfsm_t *sm, const sfsm_input_t *in, const sfsm_f
     case SFSM_NEURON_ISOLATED: *why = SFSM_R_ISOLATED_HOLD; return 0.0;
     case SFSM_WINDOW_LIMIT: *why = SFSM_R_WINDOW_HOLD; return 0.0;
     case SFSM_HALTED:
-    case SFSM_STATE_COUNT: break;
+    case SFSM_STATE_COUNT: /* MISRA 16.4 default */
+    default: break;
     }
     *why = f->valid ? SFSM_R_HALTED : SFSM_R_BAD_INPUT;
     return 0.0;
@@ -351,7 +353,8 @@ static void sfsm_do_action(sfsm_t *sm, const sfsm_input_t *in, sfsm_action_t a)
         break;
     case SFSM_A_RESTORE:
     case SFSM_A_NONE:
-    case SFSM_ACTION_COUNT: break;
+    case SFSM_ACTION_COUNT: /* MISRA 16.4 default */
+    default: break;
     }
 }
 

@@ -169,13 +169,13 @@ static md_status_t sc_log_evidence_m(const sc_curve_t *c, const sc_config_t *cfg
     const size_t p = m - 1u;
     double s[(SC_M_MAX - 1u) * (SC_M_MAX - 1u)];
     double t[SC_M_MAX];
-    double mu[SC_M_MAX];
     double yy = 0.0;
     sc_centred_moments(c, p, cfg->depth_scale_um, s, t, &yy);
     const double tau2 = cfg->coef_prior_sd * cfg->coef_prior_sd;
     double fit = 0.0;
     double logdet_n = 0.0;
     if (p > 0u) {
+        double mu[SC_M_MAX];
         for (size_t a = 0u; a < p; ++a) {
             s[a * p + a] += 1.0 / tau2;
             mu[a] = t[a];
