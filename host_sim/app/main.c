@@ -135,9 +135,10 @@ static void print_stats(simproc_t *sp)
     const simnode_plant_stats_t *ps = &sp->plant.stats;
     fprintf(stderr,
             "microdrive-sim: sim time %.6f s; rx %" PRIu64 " (ignored %" PRIu64 ", malformed %" PRIu64
-            ", foreign clock %" PRIu64 "); tx %" PRIu64 " + %" PRIu64 " heartbeats, tx errors %" PRIu64
-            ", retries %" PRIu64 "; bus rx overflow %" PRIu64 "\n",
+            ", foreign clock %" PRIu64 ", steps %" PRIu64 "); tx %" PRIu64 " + %" PRIu64
+            " heartbeats, tx errors %" PRIu64 ", retries %" PRIu64 "; bus rx overflow %" PRIu64 "\n",
             (double)sp->plant.now_us * 1e-6, ps->rx_frames, ps->rx_ignored, ps->rx_malformed, ps->rx_foreign_clock,
+            ps->steps,
             sp->tx_frames, sp->heartbeats, sp->tx_errors, sp->tx_retries, sp->bus.stats.rx_overflow);
     for (uint32_t i = 0; i < 3u; i++) {
         const simnode_t *n = simnode_plant_node(&sp->plant, SIMPROC_NODES[i]);

@@ -1,6 +1,5 @@
 #include "simnode_fe.h"
 
-#include <stdio.h>
 #include <string.h>
 
 #include "md_can.h"
@@ -109,9 +108,7 @@ bool simnode_fe_on_req(simnode_fe_t *fe, const md_frame_t *f, uint64_t t_us)
         fe_send_end(fe, r.electrode, r.interval_id, MD_REC_OVERFLOW, 0u);
         return false;
     }
-    char label[48];
-    (void)snprintf(label, sizeof label, "rec e%u i%u", (unsigned)r.electrode, (unsigned)r.interval_id);
-    if (simnode_world_record_start(fe->world, r.electrode, label) != MD_OK) {
+    if (simnode_world_record_start(fe->world, r.electrode, r.interval_id, r.num_samples) != MD_OK) {
         fe->node.fault = true;
         (void)simnode_emcy(&fe->node, (uint16_t)MD_EMCY_SOFTWARE, r.electrode, (uint32_t)(int32_t)MD_E_STATE);
         fe_send_end(fe, r.electrode, r.interval_id, MD_REC_ABORTED, 0u);

@@ -170,6 +170,47 @@ static void plant_on_estop(simnode_plant_t *p, const md_frame_t *f)
     simnode_fe_abort(&p->fe, UINT32_MAX);
 }
 
+/* SIM_STEP (lockstep only): the front-end lets Duration_us of simulated time
+ * pass with nothing commanded, e.g. for the tissue to settle after a motion.
+ * The answer is a batch like any other: SIM_CLOCK(t), the plant's periodic
+ * frames that fall in (t, t + d] in time order, SIM_CLOCK(t + d); a zero
+ * duration is answered with SIM_CLOCK(t) alone. Validated like a command of
+ * the front-end; refused (no answer) when it is not operational, ignored in
+ * realtime mode where the wall clock moves time. */
+static void plant_on_step(simnode_plant_t *p, const md_frame_t *f)
+{
+    struct md_can_sim_step_t m;
+    simnode_t *fe = &p->fe.node;
+    if (f->len != MD_CAN_SIM_STEP_LENGTH || (f->flags & MD_FRAME_FLAG_FD) != 0u ||
+        md_can_sim_step_unpack(&m, f->data, f->len) != 0) {
+        simnode_malformed(fe, f->id);
+        return;
+    }
+    if (!p->cfg.lockstep) {
+        p->stats.rx_ignored++;
+        return;
+    }
+    if (!simnode_operational(fe)) {
+        fe->stats.rx_refused++;
+        return;
+    }
+    fe->stats.rx_frames++;
+    p->stats.steps++;
+    const uint64_t end_us = p->now_us + m.duration_us;
+    if (!p->batch_clock_sent) {   /* the answer starts with the clock even if nothing else goes out */
+        p->batch_clock_sent = true;
+        p->stats.batches++;
+        plant_send_clock(p, p->batch_start_us);
+    }
+    /* bounded: every event time is > now and at most end_us */
+    for (uint64_t t = simnode_plant_next_event_us(p); t <= end_us; t = simnode_plant_next_event_us(p)) {
+        plant_run_at(p, (t > p->now_us) ? t : p->now_us);
+    }
+    if (end_us > p->now_us) {
+        plant_run_at(p, end_us);
+    }
+}
+
 static void plant_dispatch(simnode_plant_t *p, const md_frame_t *f)
 {
     const uint64_t malformed_before = p->act.node.stats.rx_malformed + p->fe.node.stats.rx_malformed;
@@ -196,6 +237,9 @@ static void plant_dispatch(simnode_plant_t *p, const md_frame_t *f)
         break;
     case MD_CAN_SIM_CLOCK_FRAME_ID:
         p->stats.rx_foreign_clock++;
+        break;
+    case MD_CAN_SIM_STEP_FRAME_ID:
+        plant_on_step(p, f);
         break;
     default:
         p->stats.rx_ignored++;

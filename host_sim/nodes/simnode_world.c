@@ -19,6 +19,7 @@ struct simnode_world {
     uint64_t t_us;
     uint32_t fs_hz;              /* integer sampling rate shared by every electrode */
     bool recording[SIM_MAX_ELECTRODES];
+    FILE *truth;                 /* ground-truth sink (not owned) or NULL */
 };
 
 static void world_err(char *err, size_t errlen, const char *msg)
@@ -200,7 +201,7 @@ uint32_t simnode_world_fe_rate_hz(const simnode_world_t *w) { return w->fs_hz; }
 
 double simnode_world_fe_gain_uv(const simnode_world_t *w) { return w->sim.el[0].cfg.signal.adc_gain_uv; }
 
-md_status_t simnode_world_record_start(simnode_world_t *w, uint32_t e, const char *label)
+md_status_t simnode_world_record_start(simnode_world_t *w, uint32_t e, uint32_t interval_id, uint32_t n_samples)
 {
     if (e >= w->sim.n_electrodes) {
         return MD_E_ARG;
@@ -209,7 +210,19 @@ md_status_t simnode_world_record_start(simnode_world_t *w, uint32_t e, const cha
         return MD_E_STATE;
     }
     w->recording[e] = true;
+    char label[48];
+    (void)snprintf(label, sizeof label, "rec e%u i%u", (unsigned)e, (unsigned)interval_id);
     sim_world_truth_snapshot(&w->sim, label);
+    if (w->truth != NULL) {
+        /* The electrode's own sample clock can lag floor(t * fs) by one
+         * sample after back-to-back recordings, so the first sample's index
+         * is written as it is, not derived from the time. */
+        (void)fprintf(w->truth,
+                      "{\"type\":\"interval\",\"electrode\":%u,\"interval\":%u,\"t_us\":%llu"
+                      ",\"start_sample\":%llu,\"num_samples\":%u,\"sample_rate_hz\":%u}\n",
+                      (unsigned)e, (unsigned)interval_id, (unsigned long long)w->t_us,
+                      (unsigned long long)w->sim.el[e].cursor, (unsigned)n_samples, (unsigned)w->fs_hz);
+    }
     return MD_OK;
 }
 
@@ -243,4 +256,8 @@ uint64_t simnode_world_adc_clipped(const simnode_world_t *w)
     return n;
 }
 
-void simnode_world_set_truth(simnode_world_t *w, FILE *f) { sim_world_set_truth(&w->sim, f); }
+void simnode_world_set_truth(simnode_world_t *w, FILE *f)
+{
+    w->truth = f;
+    sim_world_set_truth(&w->sim, f);
+}

@@ -94,10 +94,14 @@ double simnode_world_fe_gain_uv(const simnode_world_t *w);
 
 /// Starts recording electrode e at the world's current time: from now on its
 /// time moves only through simnode_world_record_next (so no sample is
-/// skipped or repeated), until simnode_world_record_stop. Writes a
-/// ground-truth `state` record labelled `label` when a truth sink is set.
+/// skipped or repeated), until simnode_world_record_stop. With a truth sink
+/// it writes the `state` records (label "rec e<e> i<interval_id>") and then
+/// one `interval` record: {electrode, interval, t_us, start_sample,
+/// num_samples, sample_rate_hz}, where start_sample is the electrode's sample
+/// clock at the interval's first sample (the clock of the `spike` records):
+/// detection k of the interval lies at start_sample + k.
 /// MD_E_ARG for a bad electrode, MD_E_STATE if already recording.
-md_status_t simnode_world_record_start(simnode_world_t *w, uint32_t e, const char *label);
+md_status_t simnode_world_record_start(simnode_world_t *w, uint32_t e, uint32_t interval_id, uint32_t n_samples);
 
 /// The next n samples (ADC codes) of electrode e's recording; the samples do
 /// not depend on how a recording is cut into calls. O(n + spikes).
