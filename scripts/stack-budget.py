@@ -162,7 +162,11 @@ class Analysis:
                     self.errors.append(f"indirect call in {short(title)} ({self.g.where.get(title, '?')}) "
                                        f"has no declared targets (add 'indirect {short(title)} <target>...')")
                     continue
-                kids += [self.g.resolve(t) for t in targets]
+                for t in targets:  # a target may be a pattern: test_* (Unity's RUN_TEST)
+                    if any(ch in t for ch in "*?["):
+                        kids += [f for f in self.g.frame if fnmatch.fnmatchcase(short(f), t)]
+                    else:
+                        kids.append(self.g.resolve(t))
             else:
                 kids.append(self.g.resolve(callee) if callee not in self.g.frame else callee)
         kids += [self.g.resolve(t) for t in self.b.edge.get(short(title), [])]
