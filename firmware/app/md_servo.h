@@ -1,0 +1,202 @@
+/// @file md_servo.h
+/// Depth servo of one electrode (thesis ch. 5: stick-slip piezo actuator with
+/// sub-micron, imprecise steps; Hall sensor read-out of the carrier depth).
+///
+/// Pure logic, no I/O: the cycle (md_cycle.h) feeds it the Hall readings,
+/// the calibration frames and the actuator's status, and executes the action
+/// it returns (send an ACT_CMD step, let time pass for fresh readings, or
+/// finished). One move = a bounded number of iterations of
+///   measure (average of avg_n fresh readings, polynomial calibration in the
+///   normalised code) -> command round(error / learned step) steps -> wait
+///   for the actuator's final status,
+/// until |error| <= tol_um. The effective step length is learned per
+/// direction from the Hall displacement of every move (stick-slip drives
+/// advance and retract by different amounts, and their step varies).
+///
+/// Safety, enforced here whatever the caller asks:
+/// - the target is clamped into the allowed region: the depth window
+///   [win_min, win_max] intersected with [d0 - step_max, d0 + step_max] about
+///   the depth d0 measured when the move starts (Δmax per cycle);
+/// - a command never plans to pass the region's edge even if the steps were
+///   MD_SERVO_STEP_SAFETY times longer than learned;
+/// - stalls (ACT_STATUS stalled, or no Hall change for a commanded travel),
+///   end stops and actuator faults end the move (no retry);
+/// - no calibration or no fresh readings: no motion.
+/// The caller decides WHETHER to move at all (SFSM, node state, recording).
+#ifndef MD_SERVO_H
+#define MD_SERVO_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "common/md_status.h"
+
+#define MD_SERVO_CAL_MAX 16u          ///< calibration coefficients (degree <= 15)
+#define MD_SERVO_AVG_MAX 16u          ///< Hall readings kept for averaging
+#define MD_SERVO_ITER_MAX 32u         ///< bound of max_iter
+#define MD_SERVO_STEP_SAFETY 1.5      ///< planned travel × this must stay inside the region
+#define MD_SERVO_STALL_FRACTION 0.25  ///< less Hall travel than this × expected counts as "no motion"
+#define MD_SERVO_STALL_MIN_UM 2.0     ///< expected travel below this is never judged a stall
+#define MD_SERVO_STALL_REPEATS 2u     ///< consecutive no-motion moves before a stall is declared
+#define MD_SERVO_CAL_INDEX_MID 0xF0u  ///< HALL_CALIB CoeffIndex of code_mid (DBC comment)
+#define MD_SERVO_CAL_INDEX_HALF 0xF1u ///< HALL_CALIB CoeffIndex of code_half
+
+/// Tunables (md_params rows servo_*).
+typedef struct {
+    double tol_um;       ///< converged when |target - depth| <= tol_um (> 0; 2 µm)
+    uint8_t max_iter;    ///< step commands per move, 1..MD_SERVO_ITER_MAX
+    uint8_t avg_n;       ///< readings averaged per measurement, 1..MD_SERVO_AVG_MAX
+    double step_nm;      ///< initial estimate of one step's travel, both directions (> 0)
+    uint16_t rate_hz;    ///< ACT_CMD StepRate_hz (>= 1)
+    uint32_t wait_us;    ///< time to let pass when fresh readings are missing (> 0)
+    uint8_t max_waits;   ///< consecutive such waits before MD_SERVO_R_NO_SENSOR (>= 1)
+} md_servo_config_t;
+
+/// What the servo wants the caller to do now.
+typedef enum {
+    MD_SERVO_A_NONE = 0,  ///< nothing: waiting for an ACT_STATUS or a reading
+    MD_SERVO_A_STEP,      ///< send ACT_CMD step (direction, steps, rate_hz), then md_servo_sent()
+    MD_SERVO_A_WAIT,      ///< let wait_us pass (SIM_STEP in lockstep, a timer otherwise), then call again
+    MD_SERVO_A_FINISHED   ///< the move is over: see md_servo_t.result
+} md_servo_action_kind_t;
+
+typedef struct {
+    md_servo_action_kind_t kind;
+    uint8_t direction;   ///< MD_ACT_DIR_ADVANCE (deeper) or MD_ACT_DIR_RETRACT
+    uint16_t steps;
+    uint16_t rate_hz;
+    uint32_t wait_us;
+} md_servo_action_t;
+
+/// How the last move ended.
+typedef enum {
+    MD_SERVO_R_NONE = 0,        ///< no move finished yet / in progress
+    MD_SERVO_R_CONVERGED,       ///< within tol_um of the (clamped) target
+    MD_SERVO_R_NOT_CONVERGED,   ///< max_iter commands spent
+    MD_SERVO_R_STALL,           ///< actuator stalled or the Hall code did not follow
+    MD_SERVO_R_END_STOP,        ///< an end stop was hit
+    MD_SERVO_R_FAULT,           ///< actuator fault (e.g. its e-stop) or a command refused
+    MD_SERVO_R_NO_SENSOR,       ///< no calibration, or no fresh readings in time
+    MD_SERVO_R_OUT_OF_REGION,   ///< measured depth left the allowed region (never planned)
+    MD_SERVO_R_ABORTED          ///< md_servo_abort()
+} md_servo_result_t;
+
+typedef enum {
+    MD_SERVO_IDLE = 0,
+    MD_SERVO_MEASURE,   ///< collecting fresh readings
+    MD_SERVO_MOVING     ///< a step command is out; waiting for its final ACT_STATUS
+} md_servo_phase_t;
+
+/// Counters (never reset except by init).
+typedef struct {
+    uint32_t moves, converged, not_converged, stalls, end_stops, faults, no_sensor, out_of_region, aborted;
+    uint32_t commands;      ///< ACT_CMD steps issued
+    uint32_t steps;         ///< steps commanded in total
+    uint32_t clamped;       ///< targets clamped into the region
+    uint32_t bad_readings;  ///< readings that the calibration turned into non-finite depths
+} md_servo_stats_t;
+
+/// The servo of one electrode (caller-owned; ~0.8 kB).
+typedef struct {
+    md_servo_config_t cfg;
+    /* calibration: staged until every coefficient, code_mid and code_half arrived */
+    double cal_coef[MD_SERVO_CAL_MAX];
+    double cal_mid, cal_half;
+    uint8_t cal_count;          ///< CoeffCount of the staged set
+    uint32_t cal_have;          ///< bit k: coefficient k received; bits 30/31 mid/half
+    bool calibrated;
+    /* readings (raw codes; converted when averaged, so a new calibration applies at once) */
+    uint16_t code[MD_SERVO_AVG_MAX];
+    uint8_t code_head, code_count;
+    uint8_t fresh;              ///< readings since the last md_servo_clear_readings()
+    /* learned travel of one step, µm, [0] advance, [1] retract */
+    double step_um[2];
+    /* the move in progress */
+    md_servo_phase_t phase;
+    md_servo_result_t result;
+    double target_um;           ///< requested target
+    double goal_um;             ///< target clamped into the region
+    double region_lo_um, region_hi_um;
+    double win_min_um, win_max_um, step_max_um;
+    bool have_start;            ///< d0 measured (region known)
+    double start_um;            ///< d0
+    double depth_um;            ///< latest measured depth of this move
+    double before_um;           ///< depth measured before the command in flight
+    uint8_t iter;               ///< commands issued in this move
+    uint8_t waits;              ///< consecutive waits for readings
+    uint8_t no_motion;          ///< consecutive moves without Hall change
+    uint8_t cmd_seq;            ///< Seq of the command in flight
+    uint8_t cmd_dir;
+    uint16_t cmd_steps;
+    md_servo_stats_t stats;
+} md_servo_t;
+
+/// Documented defaults: tol 2 µm, 8 iterations, 5 readings, 40 nm, 1000 Hz,
+/// 60 ms wait, 4 waits.
+void md_servo_config_default(md_servo_config_t *cfg);
+
+/// MD_OK if every field is in its documented range, else MD_E_ARG.
+md_status_t md_servo_config_check(const md_servo_config_t *cfg);
+
+/// Clears everything (no calibration, no readings, estimates = cfg->step_nm).
+/// MD_E_ARG on NULL or an invalid config. O(1).
+md_status_t md_servo_init(md_servo_t *s, const md_servo_config_t *cfg);
+
+/// Replaces the tunables (a move in progress keeps going with the new ones;
+/// learned step lengths are kept). MD_E_ARG if invalid (nothing changed).
+md_status_t md_servo_configure(md_servo_t *s, const md_servo_config_t *cfg);
+
+/// One HALL_CALIB frame: index < count a coefficient of x^index, or
+/// MD_SERVO_CAL_INDEX_MID / _HALF. A different count restarts the staged set
+/// (the previous complete calibration stays in use until the new one is
+/// complete). MD_E_ARG on a non-finite value, count 0 or > MD_SERVO_CAL_MAX,
+/// an index out of range, or code_half <= 0. O(1).
+md_status_t md_servo_calib(md_servo_t *s, uint8_t index, uint8_t count, double value);
+
+/// Depth of one raw code through the calibration (Horner in the normalised
+/// code). MD_E_STATE before a complete calibration, MD_E_NUMERIC if not
+/// finite. O(count).
+md_status_t md_servo_code_to_depth_um(const md_servo_t *s, uint16_t code, double *depth_um);
+
+/// One accepted HALL_READING (the node checked its sequence). O(1).
+void md_servo_reading(md_servo_t *s, uint16_t code);
+
+/// Forgets the readings (they no longer describe the position). O(1).
+void md_servo_clear_readings(md_servo_t *s);
+
+/// Mean depth of the latest min(avg_n, kept) readings. MD_E_STATE without a
+/// calibration or readings, MD_E_NUMERIC if a depth is not finite. O(avg_n · count).
+md_status_t md_servo_depth_um(const md_servo_t *s, double *depth_um);
+
+/// Starts a move to target_um inside [win_min_um, win_max_um] and at most
+/// step_max_um from the depth measured first (fresh readings are collected
+/// before anything moves). MD_E_ARG on non-finite or inconsistent arguments
+/// (nothing changes), MD_E_STATE if a move is in progress. O(1).
+md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um,
+                           double step_max_um);
+
+/// The caller sent the ACT_CMD step of the last MD_SERVO_A_STEP with this Seq. O(1).
+void md_servo_sent(md_servo_t *s, uint8_t seq);
+
+/// The caller could not send it (refused by the node: not allowed to move,
+/// or the bus): the move ends with MD_SERVO_R_FAULT. O(1).
+void md_servo_send_failed(md_servo_t *s);
+
+/// An accepted ACT_STATUS of this electrode. Only the final status
+/// (not moving) of the command in flight (CmdSeq) matters. O(1).
+void md_servo_act_status(md_servo_t *s, uint8_t cmd_seq, uint8_t state, uint8_t end_stops, uint16_t steps_done);
+
+/// Next action; call after every input and after a wait. O(avg_n · count).
+md_servo_action_t md_servo_next(md_servo_t *s);
+
+/// Ends a move at once (e-stop, node left operational). The caller halts
+/// the actuator. Result MD_SERVO_R_ABORTED if a move was in progress. O(1).
+void md_servo_abort(md_servo_t *s);
+
+/// True while a move is in progress.
+bool md_servo_busy(const md_servo_t *s);
+
+/// Short name of a result ("converged", ...).
+const char *md_servo_result_name(md_servo_result_t r);
+
+#endif
