@@ -1,0 +1,110 @@
+/// @file session.h
+/// microdrive-session: one host-in-loop session of the simulator's plant and
+/// the controller firmware, on a socket bus (separate processes) or in one
+/// process on an in-process bus with a virtual clock. Design: docs/session.md.
+///
+/// The parts: the options (session_cli.c), the recorder that writes every
+/// frame in candump -L format and follows the controller's telemetry for
+/// progress lines and the end of the session (session_track.c), the two
+/// runners (session_inproc.c, session_procs.c) and the scorer call
+/// (session_main.c -> tools/session/score.py).
+#ifndef SESSION_H
+#define SESSION_H
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "md_frame.h"
+
+/// Electrodes a session follows at most (the simulator's limit).
+#define SESSION_MAX_ELECTRODES 8u
+
+typedef enum { SESSION_BUS_INPROC = 0, SESSION_BUS_SOCKET = 1 } session_bus_mode_t;
+
+typedef struct {
+    const char *scenario;        ///< --scenario FILE
+    uint64_t seed;               ///< --seed N (default: the scenario's)
+    bool seed_given;
+    const char *bus;             ///< --bus auto|vcan0|udp|udp:PORT|IFACE|inproc
+    const char *out;             ///< --out DIR
+    uint32_t cycles;             ///< --cycles N: every electrode completes N cycles (0: unused)
+    double duration_s;           ///< --duration-s S: simulated seconds (<0: unused)
+    double idle_s;               ///< --idle-s: end when nothing but heartbeats moved for this long
+    const char *bin_dir;         ///< --bin-dir: microdrive-sim/-fw (default: next to this program)
+    const char *python;          ///< --python: interpreter for the scorer
+    bool no_score;               ///< --no-score: leave report.json out
+    bool quiet;                  ///< --quiet: no progress lines
+    bool help;
+} session_opts_t;
+
+/// Parses argv. 0 ok, -1 usage error (message in msg).
+int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg, size_t msglen);
+/// The --help text.
+const char *session_cli_usage(void);
+
+/// When the session is over (per electrode, from the controller's telemetry).
+typedef struct {
+    uint32_t cycles;             ///< stop when every electrode has this many TLM_STATUS (0: unused)
+    uint64_t duration_us;        ///< stop when simulated time passed it and every interval that
+                                 ///< started before it has its TLM_STATUS (0: unused)
+} session_goal_t;
+
+/// The recorder: log file plus what the telemetry says so far.
+typedef struct {
+    FILE *log;                   ///< candump -L lines (owned by the caller)
+    char iface[16];              ///< interface column of the log
+    bool quiet;
+    uint32_t electrodes;         ///< electrodes of the scenario
+    session_goal_t goal;
+    uint64_t frames;
+    uint64_t sim_clock_us;       ///< last SIM_CLOCK
+    bool clock_seen;
+    uint64_t activity;           ///< frames other than heartbeats (progress = this changes)
+    uint32_t status_count[SESSION_MAX_ELECTRODES];
+    int32_t status_last_cycle[SESSION_MAX_ELECTRODES];    ///< -1: none yet
+    int32_t need_cycle[SESSION_MAX_ELECTRODES];           ///< duration goal: last cycle started before it
+    bool fw_booted;              ///< the controller's boot-up heartbeat was seen
+    uint32_t fe_info_mask;       ///< electrodes announced by the front-end (FE_INFO)
+    uint64_t hb_seen[6];         ///< heartbeats per node id 1..5
+} session_track_t;
+
+/// Initialises the recorder (log may be NULL: nothing written).
+void session_track_init(session_track_t *t, FILE *log, const char *iface, uint32_t electrodes,
+                        session_goal_t goal, bool quiet);
+
+/// Logs one frame with its time stamp and follows the telemetry; prints a
+/// progress line per TLM_STATUS unless quiet.
+void session_track_frame(session_track_t *t, const md_frame_t *f, uint64_t stamp_us);
+
+/// True when the goal is reached for every electrode.
+bool session_track_done(const session_track_t *t);
+
+/// One-line summary (cycles per electrode, simulated time) to `out`.
+void session_track_summary(const session_track_t *t, FILE *out);
+
+/// Why a runner ended.
+typedef enum {
+    SESSION_END_GOAL = 0,        ///< the goal was reached
+    SESSION_END_IDLE,            ///< nothing moved for idle_s (controller waiting for nothing)
+    SESSION_END_SIGNAL,          ///< SIGINT/SIGTERM
+    SESSION_END_ERROR            ///< a process died, a bus failed
+} session_end_t;
+
+/// Human-readable name of an end reason.
+const char *session_end_name(session_end_t e);
+
+/// Runs the session in this process (inproc bus, virtual clock). Writes
+/// DIR/candump.log and DIR/truth.jsonl. Returns how it ended.
+session_end_t session_run_inproc(const session_opts_t *o, const char *resolved_bus, session_track_t *t,
+                                 FILE *truth);
+
+/// Runs microdrive-fw and microdrive-sim as processes on a socket bus with a
+/// recorder endpoint here. `bus_spec` is the spec given (auto resolved here).
+/// `bus_used` receives the resolved spec (vcan0, udp:PORT).
+session_end_t session_run_procs(const session_opts_t *o, session_track_t *t, char *bus_used, size_t bus_used_len);
+
+/// Set by the signal handler: the runners end soon after.
+extern volatile int session_stop_signal;
+
+#endif

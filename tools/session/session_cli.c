@@ -1,0 +1,127 @@
+/// @file session_cli.c
+/// Command line of microdrive-session (docs/session.md).
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "session.h"
+
+const char *session_cli_usage(void)
+{
+    return "usage: microdrive-session --scenario FILE [--seed N] [--bus auto|vcan0|udp|udp:PORT|IFACE|inproc]\n"
+           "                          --out DIR [--cycles N | --duration-s S] [--idle-s S]\n"
+           "                          [--bin-dir DIR] [--python PY] [--no-score] [--quiet] [--help]\n"
+           "  --scenario FILE   simulator scenario (scenarios/*.yaml)\n"
+           "  --seed N          seed of every random stream (default: the scenario's)\n"
+           "  --bus SPEC        inproc: simulator + controller in this process, virtual clock, as fast\n"
+           "                    as possible; vcan0/IFACE/udp: microdrive-sim and microdrive-fw as\n"
+           "                    processes; auto (default): vcan0 if present, else udp\n"
+           "  --out DIR         candump.log (every frame), truth.jsonl, report.json [, sim.log, fw.log]\n"
+           "  --cycles N        end when every electrode has completed N cycles (TLM_STATUS)\n"
+           "  --duration-s S    end when simulated time passed S and every interval begun before\n"
+           "                    S is reported (default: the scenario's duration_s)\n"
+           "  --idle-s S        end early when nothing but heartbeats moved for S seconds (virtual\n"
+           "                    seconds in-process, wall seconds otherwise; default 30)\n"
+           "  --bin-dir DIR     where microdrive-sim and microdrive-fw are (default: next to this program)\n"
+           "  --python PY       interpreter for tools/session/score.py (default: $MD_PYTHON, the\n"
+           "                    project venv, python3)\n"
+           "  --no-score        no report.json\n"
+           "  --quiet           no progress lines\n"
+           "Progress: one line per electrode and cycle (TLM_STATUS). Exit: 0 goal reached, 4 ended idle\n"
+           "before the goal (report written), 1 runtime error, 2 usage.\n";
+}
+
+static int parse_u64(const char *s, uint64_t *v)
+{
+    char *end = NULL;
+    errno = 0;
+    const unsigned long long x = strtoull(s, &end, 10);
+    if (errno != 0 || end == s || *end != '\0' || s[0] == '-') {
+        return -1;
+    }
+    *v = (uint64_t)x;
+    return 0;
+}
+
+static int parse_double(const char *s, double *v)
+{
+    char *end = NULL;
+    errno = 0;
+    *v = strtod(s, &end);
+    return (errno != 0 || end == s || *end != '\0' || !(*v >= 0.0)) ? -1 : 0;
+}
+
+static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen)
+{
+    uint64_t u = 0u;
+    if (strcmp(opt, "--scenario") == 0) {
+        o->scenario = val;
+    } else if (strcmp(opt, "--seed") == 0) {
+        if (parse_u64(val, &o->seed) != 0) {
+            goto bad;
+        }
+        o->seed_given = true;
+    } else if (strcmp(opt, "--bus") == 0) {
+        o->bus = val;
+    } else if (strcmp(opt, "--out") == 0) {
+        o->out = val;
+    } else if (strcmp(opt, "--cycles") == 0) {
+        if (parse_u64(val, &u) != 0 || u == 0u || u > 65535u) {
+            goto bad;
+        }
+        o->cycles = (uint32_t)u;
+    } else if (strcmp(opt, "--duration-s") == 0) {
+        if (parse_double(val, &o->duration_s) != 0 || !(o->duration_s > 0.0)) {
+            goto bad;
+        }
+    } else if (strcmp(opt, "--idle-s") == 0) {
+        if (parse_double(val, &o->idle_s) != 0 || !(o->idle_s > 0.0)) {
+            goto bad;
+        }
+    } else if (strcmp(opt, "--bin-dir") == 0) {
+        o->bin_dir = val;
+    } else if (strcmp(opt, "--python") == 0) {
+        o->python = val;
+    } else {
+        (void)snprintf(msg, msglen, "unknown option '%s'", opt);
+        return -1;
+    }
+    return 0;
+bad:
+    (void)snprintf(msg, msglen, "%s: bad value '%s'", opt, val);
+    return -1;
+}
+
+int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg, size_t msglen)
+{
+    memset(o, 0, sizeof *o);
+    o->bus = "auto";
+    o->duration_s = -1.0;
+    o->idle_s = 30.0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            o->help = true;
+            return 0;
+        } else if (strcmp(a, "--no-score") == 0) {
+            o->no_score = true;
+        } else if (strcmp(a, "--quiet") == 0) {
+            o->quiet = true;
+        } else if (i + 1 >= argc || strncmp(a, "--", 2) != 0) {
+            (void)snprintf(msg, msglen, "'%s' needs a value or is not an option", a);
+            return -1;
+        } else if (cli_value(o, a, argv[++i], msg, msglen) != 0) {
+            return -1;
+        }
+    }
+    if (o->scenario == NULL || o->out == NULL) {
+        (void)snprintf(msg, msglen, "--scenario and --out are required");
+        return -1;
+    }
+    if (o->cycles > 0u && o->duration_s > 0.0) {
+        (void)snprintf(msg, msglen, "give --cycles or --duration-s, not both");
+        return -1;
+    }
+    return 0;
+}

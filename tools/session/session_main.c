@@ -1,0 +1,205 @@
+/// @file session_main.c
+/// microdrive-session: starts the simulator and the controller, records every
+/// frame, shows progress per cycle, and scores the session against the
+/// simulator's ground truth (tools/session/score.py -> report.json).
+/// Design and report format: docs/session.md.
+#include <errno.h>
+#include <inttypes.h>
+#include <libgen.h>
+#include <limits.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "md_bus.h"
+#include "scenario/scenario.h"
+#include "session.h"
+
+#ifndef MD_SESSION_PYTHON
+#define MD_SESSION_PYTHON "python3"
+#endif
+#ifndef MD_SESSION_SCORER
+#define MD_SESSION_SCORER "score.py"
+#endif
+
+#define SESSION_EXIT_IDLE 4
+
+volatile int session_stop_signal = 0;
+
+static void on_signal(int sig) { session_stop_signal = sig; }
+
+static void install_signals(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    (void)sigemptyset(&sa.sa_mask);
+    (void)sigaction(SIGINT, &sa, NULL);
+    (void)sigaction(SIGTERM, &sa, NULL);
+}
+
+static int mkdir_p(const char *path)
+{
+    char buf[PATH_MAX];
+    (void)snprintf(buf, sizeof buf, "%s", path);
+    for (char *p = buf + 1; *p != '\0'; p++) {
+        if (*p == '/') {
+            *p = '\0';
+            if (mkdir(buf, 0755) != 0 && errno != EEXIST) {
+                return -1;
+            }
+            *p = '/';
+        }
+    }
+    return (mkdir(buf, 0755) != 0 && errno != EEXIST) ? -1 : 0;
+}
+
+/* The directory of this executable (build/<preset>/bin). */
+static void self_dir(char *out, size_t len)
+{
+    char exe[PATH_MAX];
+    const ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1u);
+    if (n <= 0) {
+        (void)snprintf(out, len, ".");
+        return;
+    }
+    exe[n] = '\0';
+    (void)snprintf(out, len, "%s", dirname(exe));
+}
+
+static const char *pick_python(const session_opts_t *o)
+{
+    if (o->python != NULL) {
+        return o->python;
+    }
+    const char *env = getenv("MD_PYTHON");
+    if (env != NULL && env[0] != '\0') {
+        return env;
+    }
+    return (access(MD_SESSION_PYTHON, X_OK) == 0) ? MD_SESSION_PYTHON : "python3";
+}
+
+/* Runs score.py; returns its exit status (0 ok). */
+static int run_scorer(const session_opts_t *o, const char *bus_label, const char *end_name)
+{
+    static char py[PATH_MAX], scorer[PATH_MAX], scen[PATH_MAX], log[PATH_MAX], truth[PATH_MAX], report[PATH_MAX];
+    static char seed[32], goal[64], bus[64], end[32];
+    const char *env_scorer = getenv("MD_SESSION_SCORER");
+    (void)snprintf(scorer, sizeof scorer, "%s",
+                   (env_scorer != NULL && env_scorer[0] != '\0') ? env_scorer : MD_SESSION_SCORER);
+    (void)snprintf(py, sizeof py, "%s", pick_python(o));
+    (void)snprintf(scen, sizeof scen, "%s", o->scenario);
+    (void)snprintf(log, sizeof log, "%s/candump.log", o->out);
+    (void)snprintf(truth, sizeof truth, "%s/truth.jsonl", o->out);
+    (void)snprintf(report, sizeof report, "%s/report.json", o->out);
+    (void)snprintf(seed, sizeof seed, "%" PRIu64, o->seed);
+    (void)snprintf(bus, sizeof bus, "%s", bus_label);
+    (void)snprintf(end, sizeof end, "%s", end_name);
+    if (o->cycles > 0u) {
+        (void)snprintf(goal, sizeof goal, "%u", (unsigned)o->cycles);
+    } else {
+        (void)snprintf(goal, sizeof goal, "%.6f", o->duration_s);
+    }
+    char *const argv[] = {py, scorer, "--log", log, "--truth", truth, "--out", report, "--scenario", scen,
+                          "--seed", seed, "--bus", bus, "--end", end,
+                          o->cycles > 0u ? "--cycles" : "--duration-s", goal, NULL};
+    (void)fflush(stdout);
+    const pid_t pid = fork();
+    if (pid == 0) {
+        execvp(py, argv);
+        fprintf(stderr, "microdrive-session: cannot run %s: %s\n", py, strerror(errno));
+        _exit(127);
+    }
+    int status = 0;
+    if (pid < 0 || waitpid(pid, &status, 0) != pid) {
+        return -1;
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+static bool bus_is_inproc(const char *bus) { return strcmp(bus, "inproc") == 0 || strncmp(bus, "inproc:", 7) == 0; }
+
+/* Runs the session of the parsed options; returns the end and the bus label. */
+static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label, size_t len)
+{
+    char path[PATH_MAX];
+    (void)snprintf(path, sizeof path, "%s/candump.log", o->out);
+    FILE *log = fopen(path, "w");
+    if (log == NULL) {
+        fprintf(stderr, "microdrive-session: cannot write %s: %s\n", path, strerror(errno));
+        return SESSION_END_ERROR;
+    }
+    session_track_t track;
+    const session_goal_t goal = {o->cycles, (o->cycles > 0u) ? 0u : (uint64_t)(o->duration_s * 1e6)};
+    session_track_init(&track, log, "inproc", electrodes, goal, o->quiet);
+    session_end_t end;
+    if (bus_is_inproc(o->bus)) {
+        (void)snprintf(bus_label, len, "inproc");
+        (void)snprintf(path, sizeof path, "%s/truth.jsonl", o->out);
+        FILE *truth = fopen(path, "w");
+        if (truth == NULL) {
+            fprintf(stderr, "microdrive-session: cannot write %s: %s\n", path, strerror(errno));
+            (void)fclose(log);
+            return SESSION_END_ERROR;
+        }
+        fprintf(stderr, "microdrive-session: bus inproc (simulator and controller in this process, virtual clock)\n");
+        end = session_run_inproc(o, "inproc:session", &track, truth);
+        (void)fclose(truth);
+    } else {
+        char used[64] = "";
+        end = session_run_procs(o, &track, used, sizeof used);
+        (void)snprintf(bus_label, len, "%s", (strncmp(used, "udp", 3) == 0) ? "udp" : used);
+    }
+    (void)fclose(log);
+    session_track_summary(&track, stderr);
+    return end;
+}
+
+int main(int argc, char *argv[])
+{
+    static session_opts_t o;
+    static scenario_t sc;
+    char msg[1024], bin_dir[PATH_MAX];
+    if (session_cli_parse(&o, argc, argv, msg, sizeof msg) != 0) {
+        fprintf(stderr, "microdrive-session: %s\n%s", msg, session_cli_usage());
+        return 2;
+    }
+    if (o.help) {
+        fputs(session_cli_usage(), stdout);
+        return 0;
+    }
+    if (scenario_load(&sc, o.scenario, msg, sizeof msg) != 0) {
+        fprintf(stderr, "microdrive-session: %s", msg);
+        return 2;
+    }
+    if (!o.seed_given) {
+        o.seed = sc.seed;
+    }
+    if (o.cycles == 0u && !(o.duration_s > 0.0)) {
+        o.duration_s = sc.duration_s;
+    }
+    if (o.bin_dir == NULL) {
+        self_dir(bin_dir, sizeof bin_dir);
+        o.bin_dir = bin_dir;
+    }
+    if (mkdir_p(o.out) != 0) {
+        fprintf(stderr, "microdrive-session: cannot create %s: %s\n", o.out, strerror(errno));
+        return 1;
+    }
+    install_signals();
+    char bus_label[64];
+    const session_end_t end = run(&o, sc.n_electrodes, bus_label, sizeof bus_label);
+    fprintf(stderr, "microdrive-session: ended: %s\n", session_end_name(end));
+    if (end == SESSION_END_ERROR || end == SESSION_END_SIGNAL) {
+        return 1;
+    }
+    if (!o.no_score && run_scorer(&o, bus_label, end == SESSION_END_GOAL ? "goal" : "idle") != 0) {
+        fprintf(stderr, "microdrive-session: scoring failed\n");
+        return 1;
+    }
+    return (end == SESSION_END_GOAL) ? 0 : SESSION_EXIT_IDLE;
+}

@@ -1,0 +1,210 @@
+/// @file session_procs.c
+/// The session on a socket bus (vcan0 / UDP multicast): microdrive-fw and
+/// microdrive-sim as separate processes, and the recorder as an endpoint of
+/// this process. The controller starts first and the simulator only once the
+/// controller's boot-up heartbeat is on the bus, so the controller sees the
+/// plant's start-up batch, as in the in-process mode.
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "md_bus.h"
+#include "session.h"
+
+extern char **environ;
+
+#define PROCS_SLICE_US 50000
+#define PROCS_BOOT_WAIT_US 10000000u
+#define PROCS_TERM_WAIT_MS 3000
+
+static md_bus_t g_rec;   /* must not move while open */
+
+static uint64_t wall_us(void)
+{
+    struct timespec ts;
+    (void)clock_gettime(CLOCK_REALTIME, &ts);
+    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
+}
+
+static uint64_t mono_us(void)
+{
+    struct timespec ts;
+    (void)clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
+}
+
+/* Starts argv[0] with stdout and stderr into log_path. -1 on failure. */
+static pid_t spawn_logged(char *const argv[], const char *log_path)
+{
+    posix_spawn_file_actions_t fa;
+    pid_t pid = -1;
+    if (posix_spawn_file_actions_init(&fa) != 0) {
+        return -1;
+    }
+    (void)posix_spawn_file_actions_addopen(&fa, 1, log_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    (void)posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    const int rc = posix_spawn(&pid, argv[0], &fa, NULL, argv, environ);
+    (void)posix_spawn_file_actions_destroy(&fa);
+    if (rc != 0) {
+        fprintf(stderr, "microdrive-session: cannot start %s: %s\n", argv[0], strerror(rc));
+        return -1;
+    }
+    return pid;
+}
+
+/* SIGTERM, a bounded wait, then SIGKILL. Returns the exit status or -1. */
+static int stop_child(pid_t pid)
+{
+    int status = 0;
+    if (pid <= 0) {
+        return -1;
+    }
+    (void)kill(pid, SIGTERM);
+    for (int i = 0; i < PROCS_TERM_WAIT_MS / 10; i++) {
+        if (waitpid(pid, &status, WNOHANG) == pid) {
+            return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+        }
+        const struct timespec ten_ms = {0, 10000000L};
+        (void)nanosleep(&ten_ms, NULL);
+    }
+    (void)kill(pid, SIGKILL);
+    (void)waitpid(pid, &status, 0);
+    return -1;
+}
+
+static bool child_gone(pid_t pid, const char *name)
+{
+    int status = 0;
+    if (waitpid(pid, &status, WNOHANG) != pid) {
+        return false;
+    }
+    fprintf(stderr, "microdrive-session: %s ended early (%s %d)\n", name,
+            WIFEXITED(status) ? "exit" : "signal", WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status));
+    return true;
+}
+
+/* Receives for at most slice_us; every frame goes to the recorder. */
+static int record_slice(session_track_t *t, int64_t slice_us)
+{
+    md_frame_t f;
+    int rc = md_bus_receive(&g_rec, &f, slice_us);
+    while (rc == 1) {
+        session_track_frame(t, &f, wall_us());
+        rc = md_bus_receive(&g_rec, &f, 0);
+    }
+    return (rc < 0 && rc != -EINTR) ? rc : 0;
+}
+
+static int open_recorder(const session_opts_t *o, session_track_t *t, char *bus_used, size_t len)
+{
+    char why[200] = "";
+    const int rc = md_bus_open(&g_rec, o->bus, why, sizeof why);
+    if (rc != 0) {
+        fprintf(stderr, "microdrive-session: cannot open bus '%s': %s (%s)\n", o->bus, why, strerror(-rc));
+        return -1;
+    }
+    if (g_rec.kind == MD_BUS_UDP) {
+        (void)snprintf(bus_used, len, "udp:%u", (unsigned)g_rec.sock.port);
+        (void)snprintf(t->iface, sizeof t->iface, "udp%u", (unsigned)g_rec.sock.port);
+    } else if (g_rec.kind == MD_BUS_SOCKETCAN) {
+        (void)snprintf(bus_used, len, "%s", g_rec.name);
+        (void)snprintf(t->iface, sizeof t->iface, "%.15s", g_rec.name);
+    } else {
+        fprintf(stderr, "microdrive-session: bus '%s' is not a socket bus\n", o->bus);
+        md_bus_close(&g_rec);
+        return -1;
+    }
+    fprintf(stderr, "microdrive-session: bus %s (%s)\n", bus_used, why);
+    return 0;
+}
+
+static session_end_t procs_loop(const session_opts_t *o, session_track_t *t, pid_t fw, pid_t sim)
+{
+    uint64_t last_activity = t->activity, activity_at = mono_us();
+    const uint64_t idle_us = (uint64_t)(o->idle_s * 1e6);
+    for (;;) {   /* ends by the goal, idleness, a signal or a dead process */
+        if (record_slice(t, PROCS_SLICE_US) != 0) {
+            return SESSION_END_ERROR;
+        }
+        if (session_track_done(t)) {
+            return SESSION_END_GOAL;
+        }
+        if (session_stop_signal != 0) {
+            return SESSION_END_SIGNAL;
+        }
+        if (child_gone(fw, "microdrive-fw") || child_gone(sim, "microdrive-sim")) {
+            return SESSION_END_ERROR;
+        }
+        const uint64_t now = mono_us();
+        if (t->activity != last_activity) {
+            last_activity = t->activity;
+            activity_at = now;
+        } else if (now - activity_at >= idle_us) {
+            return SESSION_END_IDLE;
+        }
+    }
+}
+
+/* The controller first; the simulator once its boot-up heartbeat is seen. */
+static session_end_t procs_start(const session_opts_t *o, session_track_t *t, const char *bus, pid_t *fw,
+                                 pid_t *sim)
+{
+    static char fw_path[4096], sim_path[4096], fw_log[4096], sim_log[4096], truth[4096], seed[32];
+    static char bus_arg[64], scen[4096];
+    (void)snprintf(bus_arg, sizeof bus_arg, "%s", bus);
+    (void)snprintf(scen, sizeof scen, "%s", o->scenario);
+    (void)snprintf(fw_path, sizeof fw_path, "%s/microdrive-fw", o->bin_dir);
+    (void)snprintf(sim_path, sizeof sim_path, "%s/microdrive-sim", o->bin_dir);
+    (void)snprintf(fw_log, sizeof fw_log, "%s/fw.log", o->out);
+    (void)snprintf(sim_log, sizeof sim_log, "%s/sim.log", o->out);
+    (void)snprintf(truth, sizeof truth, "%s/truth.jsonl", o->out);
+    (void)snprintf(seed, sizeof seed, "%" PRIu64, o->seed);
+    char *const fw_argv[] = {fw_path, "--bus", bus_arg, "--auto-start", NULL};
+    *fw = spawn_logged(fw_argv, fw_log);
+    if (*fw < 0) {
+        return SESSION_END_ERROR;
+    }
+    const uint64_t t0 = mono_us();
+    while (!t->fw_booted && mono_us() - t0 < PROCS_BOOT_WAIT_US) {
+        if (record_slice(t, PROCS_SLICE_US) != 0 || child_gone(*fw, "microdrive-fw") || session_stop_signal != 0) {
+            return SESSION_END_ERROR;
+        }
+    }
+    if (!t->fw_booted) {
+        fprintf(stderr, "microdrive-session: no boot-up heartbeat of microdrive-fw (see %s)\n", fw_log);
+        return SESSION_END_ERROR;
+    }
+    char *const sim_argv[] = {sim_path, "--scenario", scen, "--seed", seed, "--bus", bus_arg,
+                              "--truth", truth, "--duration-s", "0", NULL};
+    *sim = spawn_logged(sim_argv, sim_log);
+    return (*sim < 0) ? SESSION_END_ERROR : SESSION_END_GOAL;
+}
+
+session_end_t session_run_procs(const session_opts_t *o, session_track_t *t, char *bus_used, size_t bus_used_len)
+{
+    pid_t fw = -1, sim = -1;
+    if (open_recorder(o, t, bus_used, bus_used_len) != 0) {
+        return SESSION_END_ERROR;
+    }
+    session_end_t end = procs_start(o, t, bus_used, &fw, &sim);
+    if (end == SESSION_END_GOAL) {
+        end = procs_loop(o, t, fw, sim);
+    }
+    (void)stop_child(fw);
+    (void)stop_child(sim);
+    (void)record_slice(t, 200000);   /* the last frames in flight */
+    if (g_rec.stats.rx_overflow > 0u || g_rec.stats.rx_malformed > 0u) {
+        fprintf(stderr, "microdrive-session: the recorder lost %" PRIu64 " frames (%" PRIu64 " malformed)\n",
+                g_rec.stats.rx_overflow, g_rec.stats.rx_malformed);
+        end = SESSION_END_ERROR;
+    }
+    md_bus_close(&g_rec);
+    return end;
+}
