@@ -165,7 +165,7 @@ def update_doc(path, text, command):
         doc = f.read()
     a = doc.index(BEGIN) + len(BEGIN)
     b = doc.index(END)
-    block = f"\n\nRegenerate: `{command}`\n\n{text}\n"
+    block = f"\n\nRegenerate: `{command}\n\n{text}\n"
     with open(path, "w", encoding="utf-8") as f:
         f.write(doc[:a] + block + doc[b:])
 
@@ -219,7 +219,7 @@ def main():
         cmd = (f"tools/cluster_consistency/run_experiment.py --build BUILD --seeds {args.seeds} "
                f"--calib-seeds {args.calib_seeds} --q-scales {args.q_scales} --map-evidence {args.map_evidence} "
                f"--update-doc docs/clustering-consistency.md` (BUILD: a Release host build of that revision, e.g. "
-               f"`cmake --preset release && cmake --build build/release`")
+               f"`cmake --preset release && cmake --build build/release` gives build/release)")
         update_doc(args.update_doc, text, cmd)
 
 
