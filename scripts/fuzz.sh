@@ -56,7 +56,7 @@ max_len_of() {
         fuzz_bus_text) echo 300 ;;
         fuzz_murty) echo 160 ;;
         fuzz_node|fuzz_node_stream) echo 2048 ;;
-        fuzz_cluster) echo 1200 ;;
+        fuzz_cluster) echo 600 ;;
         fuzz_pca) echo 2048 ;;
         *) echo 1024 ;;
     esac

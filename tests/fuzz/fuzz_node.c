@@ -189,6 +189,63 @@ static void check_node(const md_node_t *node)
     check_params(node);
 }
 
+static void put_le(uint8_t *p, uint32_t v, size_t n)
+{
+    for (size_t i = 0u; i < n; ++i) {
+        p[i] = (uint8_t)(v >> (8u * i));
+    }
+}
+
+/* A parameter value worth trying for row `row`: its bounds, just outside
+ * them, its default, a fraction, or a non-finite/raw float. */
+static float param_value(fz_t *in, const md_param_def_t *d)
+{
+    switch (fz_u8(in) % 10u) {
+    case 0u: return (float)d->min;
+    case 1u: return (float)d->max;
+    case 2u: return (float)(d->min - 1.0);
+    case 3u: return (float)(d->max + 1.0);
+    case 4u: return (float)d->def;
+    case 5u: return (float)(d->min + (d->max - d->min) * (double)fz_u8(in) / 255.0);
+    case 6u: return (float)(d->min + 0.5);
+    case 7u: return NAN;
+    case 8u: return ((fz_u8(in) & 1u) != 0u) ? INFINITY : -INFINITY;
+    default: {
+        const uint32_t bits = fz_u32(in);
+        float v;
+        memcpy(&v, &bits, sizeof v);
+        return v;
+    }
+    }
+}
+
+/* Payloads that get past the range checks of the frames that change state
+ * (NMT, parameter requests, heartbeats); the random bytes rarely would. */
+static void smart_payload(fz_t *in, md_frame_t *f)
+{
+    static const uint8_t NMT_CMDS[] = {MD_NMT_START, MD_NMT_STOP, MD_NMT_PREOP, MD_NMT_RESET_NODE,
+                                       MD_NMT_CLEAR_ESTOP, 7u};
+    static const uint8_t STATES[] = {MD_NODE_STATE_BOOT, MD_NODE_STATE_STOPPED, MD_NODE_STATE_OPERATIONAL,
+                                     MD_NODE_STATE_PREOP, 9u};
+    if (f->id == MD_CAN_NMT_FRAME_ID) {
+        f->data[0] = NMT_CMDS[fz_u8(in) % sizeof NMT_CMDS];
+        f->data[1] = (uint8_t)(fz_u8(in) % 4u); /* all, controller, actuator, sensor */
+    } else if (f->id == MD_CAN_PARAM_REQ_CTRL_FRAME_ID) {
+        const uint8_t op = fz_u8(in);
+        const size_t row = fz_u8(in) % (md_params_count() + 1u);
+        const md_param_def_t *d = md_params_def(row < md_params_count() ? row : 0u);
+        f->data[0] = (uint8_t)(((op & 3u) == 0u) ? MD_PARAM_OP_GET : MD_PARAM_OP_SET);
+        put_le(&f->data[2], (row < md_params_count()) ? d->index : fz_u16(in), 2u);
+        const float v = param_value(in, d);
+        uint32_t bits;
+        memcpy(&bits, &v, sizeof bits);
+        put_le(&f->data[4], bits, 4u);
+    } else if (f->id >= MD_CAN_HEARTBEAT_ACT_FRAME_ID && f->id <= MD_CAN_HEARTBEAT_OPER_FRAME_ID) {
+        f->data[0] = STATES[fz_u8(in) % sizeof STATES];
+        f->data[1] = (uint8_t)MD_PROTOCOL_VERSION;
+    }
+}
+
 /* Builds one frame from the input: mostly a known id with its DBC length and
  * FD flag (payload from the input), sometimes anything at all. */
 static void make_frame(fz_t *in, md_frame_t *f)
@@ -210,6 +267,9 @@ static void make_frame(fz_t *in, md_frame_t *f)
         f->flags = fz_u8(in);
     }
     fz_bytes(in, f->data, (f->len < MD_FRAME_MAX_DATA) ? f->len : MD_FRAME_MAX_DATA);
+    if (shape < 120u) {
+        smart_payload(in, f);
+    }
 }
 
 static bool is_estop_frame(const md_frame_t *f)
