@@ -183,6 +183,7 @@ def main():
     ap.add_argument("--update-doc", default=None)
     ap.add_argument("--source-rev", default=None, help="source revision to print (default: git describe --dirty)")
     args = ap.parse_args()
+    default_scenarios = ",".join(SCENARIOS)
     SCENARIOS[:] = [s for s in args.scenarios.split(",") if s]
     bindir = os.path.join(args.build, "bin")
     seeds = seed_list(args.seeds)
@@ -218,6 +219,7 @@ def main():
     if args.update_doc:
         cmd = (f"tools/cluster_consistency/run_experiment.py --build BUILD --seeds {args.seeds} "
                f"--calib-seeds {args.calib_seeds} --q-scales {args.q_scales} --map-evidence {args.map_evidence} "
+               + ("" if args.scenarios == default_scenarios else f"--scenarios {args.scenarios} ") +
                f"--update-doc docs/clustering-consistency.md` (BUILD: a Release host build of that revision, e.g. "
                f"`cmake --preset release && cmake --build build/release` gives build/release)")
         update_doc(args.update_doc, text, cmd)
