@@ -1,14 +1,160 @@
 /// @file md_cycle.h
-/// The autonomous positioning cycle of every electrode (thesis §2.2).
-/// (Interface being written; see md_controller.h for the public entry points.)
+/// The autonomous positioning cycle (thesis §2.2, Fig. 2.2), every electrode
+/// independently, one electrode at a time (round robin):
+///   record  REC_REQ; REC_DATA streamed into the detector (sp_push), REC_END;
+///   process PCA of the interval's windows, features, noise covariance Ξ,
+///           MHTC step with the interval's basis (md_process.h);
+///   score   per-track SNR, isolation distance of the dominant track;
+///   decide  SNR curve (§2.2.3) + SFSM (§2.2.4, Table 2.1);
+///   move    depth servo to depth + step (md_servo.h), only if the SFSM asked
+///           and the node allows motion;
+///   settle  SIM_STEP in lockstep, a timed wait otherwise;
+///   and telemetry of every cycle (md_telemetry.h).
+///
+/// Memory: per electrode md_electrode_t (tracker, curves, SFSM, servo) and
+/// ONE md_workspace_t shared by whichever electrode is being recorded or
+/// processed; all of it lives in md_cycle_t, which the controller owns
+/// statically (md_controller.h). No heap.
+///
+/// Time: cycle logic uses the simulator's time (SIM_CLOCK) in lockstep and
+/// the platform's monotonic clock otherwise; every wait for an answer is also
+/// bounded in platform time (a timeout ends the cycle, counted).
 #ifndef MD_CYCLE_H
 #define MD_CYCLE_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
-/// Cycle state of every electrode and the shared workspace (to be filled in).
+#include "control/sfsm.h"
+#include "control/snr_curve.h"
+#include "features/pca.h"
+#include "md_config.h"
+#include "md_frame.h"
+#include "md_node.h"
+#include "md_servo.h"
+#include "signal/spike_pipeline.h"
+#include "tracking/mhtc.h"
+
+#define MD_CYCLE_D 2u  ///< PCA feature dimension (thesis: 2-D features)
+_Static_assert(MD_CYCLE_D <= MD_FEAT_DIM_MAX, "feature dimension within the configured capacity");
+
+/// TLM_STATUS Flags bits (docs/controller.md).
+#define MD_TLM_F_SKIPPED 0x0001u          ///< processing failed: cycle skipped, tracks and SFSM kept
+#define MD_TLM_F_REC_FAILED 0x0002u       ///< recording aborted / out of sequence / incomplete / timed out
+#define MD_TLM_F_MOVE 0x0004u             ///< the SFSM asked for a step and the servo starts it
+#define MD_TLM_F_INHIBITED 0x0008u        ///< the SFSM asked for a step but motion is not allowed
+#define MD_TLM_F_CLAMPED 0x0010u          ///< the SFSM shortened the step to the depth window
+#define MD_TLM_F_LAST_MOVE_OK 0x0020u     ///< the previous move converged
+#define MD_TLM_F_LAST_MOVE_FAILED 0x0040u ///< the previous move ended otherwise (see moves_failed)
+#define MD_TLM_F_LOCKSTEP 0x0080u         ///< simulator lockstep: cycle time is SIM_CLOCK
+#define MD_TLM_F_NO_DEPTH 0x0100u         ///< no calibrated Hall depth: no decision, no motion
+#define MD_TLM_REASON_SHIFT 16u           ///< bits 16..23: sfsm_reason_t of the decision
+
+/// Where one electrode is in its cycle.
+typedef enum {
+    MD_CYC_IDLE = 0,     ///< waiting for its turn / for the node to be operational
+    MD_CYC_RECORDING,    ///< REC_REQ sent; REC_DATA streaming
+    MD_CYC_PROCESS,      ///< REC_END received; poll processes the interval
+    MD_CYC_MOVING,       ///< servo move in progress
+    MD_CYC_SETTLING      ///< waiting settle_ms before the next electrode's turn
+} md_cycle_phase_t;
+
+/// What a waiting phase waits for (besides its frames).
+typedef enum {
+    MD_WAIT_NONE = 0,
+    MD_WAIT_SIM,         ///< lockstep: SIM_CLOCK reaching wait_sim_us
+    MD_WAIT_WALL         ///< real time: platform clock reaching wait_wall_us
+} md_wait_t;
+
+/// Per-electrode state that persists across cycles.
 typedef struct {
-    uint32_t cycles;  ///< completed cycles, all electrodes
+    mhtc_state_t mhtc;          ///< tracker (thesis ch. 4)
+    sc_table_t curves;          ///< SNR curve per track (§2.2.3)
+    sfsm_t sfsm;                ///< supervisory state machine (§2.2.4)
+    md_servo_t servo;           ///< depth servo
+    md_cycle_phase_t phase;
+    uint16_t cycle;             ///< cycles completed (TLM Cycle, wraps)
+    uint16_t interval_id;       ///< REC_REQ IntervalId of the current/last interval
+    uint32_t rec_requested;     ///< NumSamples asked
+    uint32_t rec_samples;       ///< samples streamed into the detector
+    bool rec_bad;               ///< a frame of this interval was lost or rejected
+    md_status_t rec_status;     ///< first sp_push failure of this interval (MD_OK if none)
+    uint64_t rec_start_us;      ///< cycle time of the interval's first sample
+    bool rec_clock_seen;        ///< a SIM_CLOCK arrived since the REC_REQ (lockstep start time)
+    bool fe_info;               ///< FE_INFO received
+    uint32_t sample_rate_hz;    ///< from FE_INFO
+    double gain_uv;             ///< µV per ADC count, from FE_INFO
+    bool resume;                ///< operator resume (NMT start) not yet seen by the SFSM
+    double depth_um;            ///< depth used by the last decision
+    double target_um;           ///< requested target of the last decision
+    bool has_dominant;
+    uint32_t dominant;          ///< dominant track id
+    double snr, iqm;            ///< of the dominant track
+    uint32_t flags;             ///< MD_TLM_F_* of the last cycle
+    md_servo_result_t last_move;
+    /* counters */
+    uint32_t cycles, skipped, rec_failed, moves, moves_failed, inhibited, timeouts;
+} md_electrode_t;
+
+/// Outputs of the signal chain of the interval being processed, and the
+/// scratch every stage uses. One for all electrodes.
+typedef struct {
+    /// Stages that never overlap in time share storage: the streaming
+    /// channel (recording), the PCA scratch (fit), the tracker's workspace
+    /// (MHTC step and the labels read after it).
+    union {
+        sp_channel_t sp;
+        pca_work_t pca;
+        mhtc_workspace_t mhtc;
+    } u;
+    sx_windows_t win;                                     ///< aligned spike windows (int16)
+    sx_snippets_t noise;                                  ///< spike-free noise snippets (int16)
+    double wave[MD_MAX_SPIKES * MD_WAVE_LEN_MAX];         ///< windows in µV (mhtc_input_t needs doubles)
+    double y[MD_MAX_SPIKES * MD_CYCLE_D];                 ///< spike features
+    double noise_y[MD_MAX_NOISE_SNIPPETS * MD_CYCLE_D];   ///< noise features (isolation distance)
+    double qm_work[(MD_MAX_SPIKES + MD_MAX_NOISE_SNIPPETS) * MD_CYCLE_D];
+    double xi[MD_CYCLE_D * MD_CYCLE_D];                   ///< Ξ
+    pca_basis_t basis;                                    ///< B^k
+    mhtc_result_t res;                                    ///< leading hypothesis of the interval
+    double track_snr[MHTC_TARGETS_MAX];                   ///< SNR per reported track (0 if missed)
+    double noise_rms_uv;
+    uint32_t n_spikes;                                    ///< spikes given to the tracker
+} md_workspace_t;
+
+/// All cycles and the shared workspace.
+typedef struct {
+    md_electrode_t el[MD_ELECTRODES];
+    md_workspace_t ws;
+    uint8_t active;             ///< electrode whose turn it is
+    bool lockstep;              ///< the front-end's heartbeat carries the lockstep flag
+    bool was_operational;       ///< node state at the previous call (resume detection)
+    md_wait_t wait;
+    uint64_t wait_sim_us;
+    uint64_t wait_wall_us;
+    uint64_t timeout_wall_us;   ///< the current wait/answer ends here in platform time
+    uint8_t sim_token;          ///< SIM_STEP Token
+    uint32_t cycles;            ///< cycles completed, all electrodes
 } md_cycle_t;
+
+/// Resets every electrode (trackers, curves, SFSM in Spike Search, servo
+/// without calibration) with the node's current parameters. MD_E_ARG on NULL,
+/// or the first error of a unit's init. O(size of the state).
+md_status_t md_cycle_init(md_cycle_t *c, const md_node_t *node);
+
+/// A frame the node has validated (`accepted`) or rejected. Drives the
+/// recording, the servo's inputs, FE_INFO and the lockstep detection.
+void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool accepted, uint64_t now_us);
+
+/// Advances the active electrode's cycle: starts recordings, processes a
+/// finished interval, drives the servo, ends waits, enforces timeouts and
+/// aborts everything when motion/recording is no longer allowed.
+void md_cycle_poll(md_cycle_t *c, md_node_t *node, uint64_t now_us);
+
+/// Earliest platform time at which md_cycle_poll has work (0: now;
+/// UINT64_MAX: only frames can make progress).
+uint64_t md_cycle_next_deadline_us(const md_cycle_t *c, const md_node_t *node);
+
+/// Cycle time now: SIM_CLOCK in lockstep, else the platform clock.
+uint64_t md_cycle_time_us(const md_cycle_t *c, const md_node_t *node, uint64_t now_us);
 
 #endif

@@ -85,7 +85,7 @@ static const rx_rule_t *find_rule(uint32_t id)
 /* Sending                                                             */
 /* ------------------------------------------------------------------ */
 
-static md_status_t send_frame(md_node_t *node, uint32_t id, const uint8_t *data, int len)
+static md_status_t send_frame_flags(md_node_t *node, uint32_t id, const uint8_t *data, int len, uint8_t flags)
 {
     if (len <= 0 || len > (int)MD_FRAME_MAX_DATA) {
         return MD_E_ARG; /* a pack function failed: cannot happen with the generated sizes */
@@ -94,6 +94,7 @@ static md_status_t send_frame(md_node_t *node, uint32_t id, const uint8_t *data,
     memset(&f, 0, sizeof f);
     f.id = id;
     f.len = (uint8_t)len;
+    f.flags = flags;
     memcpy(f.data, data, (size_t)len);
     const md_status_t st = node->port.send(node->port.ctx, &f);
     if (st != MD_OK) {
@@ -102,6 +103,19 @@ static md_status_t send_frame(md_node_t *node, uint32_t id, const uint8_t *data,
     }
     node->counters.tx_frames++;
     return MD_OK;
+}
+
+static md_status_t send_frame(md_node_t *node, uint32_t id, const uint8_t *data, int len)
+{
+    return send_frame_flags(node, id, data, len, 0u);
+}
+
+md_status_t md_node_send(md_node_t *node, uint32_t id, const uint8_t *data, int len, bool fd)
+{
+    if (node == NULL || data == NULL) {
+        return MD_E_ARG;
+    }
+    return send_frame_flags(node, id, data, len, fd ? (uint8_t)MD_FRAME_FLAG_FD : 0u);
 }
 
 static bool any_lost(const md_node_t *node)
@@ -146,6 +160,11 @@ static md_status_t send_emcy(md_node_t *node, md_emcy_code_t code, uint8_t elect
         node->counters.emcy_sent++;
     }
     return st;
+}
+
+md_status_t md_node_emcy(md_node_t *node, md_emcy_code_t code, uint8_t electrode, uint32_t info)
+{
+    return (node == NULL) ? MD_E_ARG : send_emcy(node, code, electrode, info);
 }
 
 /* Protocol errors can come in floods; their EMCY is inhibited for
@@ -561,6 +580,10 @@ double md_node_param_read(const md_node_t *node, md_param_id_t id, uint64_t now_
     case MD_P_NODE_BACK: return (double)c->node_back;
     case MD_P_ESTOP_EVENTS: return (double)c->estop_events;
     case MD_P_NMT_REFUSED: return (double)c->nmt_refused;
+    case MD_P_CYCLES_DONE: return (double)c->cycles_done;
+    case MD_P_CYCLES_SKIPPED: return (double)c->cycles_skipped;
+    case MD_P_RECORDINGS_FAILED: return (double)c->rec_failed;
+    case MD_P_MOVES_FAILED: return (double)c->moves_failed;
     case MD_P_EMCY_INHIBIT_MS:
     case MD_P_HEARTBEAT_TIMEOUT_MS:
     case MD_P_HEARTBEAT_PERIOD_MS:
@@ -575,6 +598,21 @@ double md_node_param_read(const md_node_t *node, md_param_id_t id, uint64_t now_
     case MD_P_STEP_RESAMPLE_UM:
     case MD_P_DEPTH_MIN_UM:
     case MD_P_DEPTH_MAX_UM:
+    case MD_P_SETTLE_MS:
+    case MD_P_MIN_RATE_HZ:
+    case MD_P_SERVO_TOL_UM:
+    case MD_P_SERVO_MAX_ITER:
+    case MD_P_SERVO_AVG_N:
+    case MD_P_SERVO_STEP_NM:
+    case MD_P_SERVO_RATE_HZ:
+    case MD_P_SFSM_GAMMA1:
+    case MD_P_SFSM_GAMMA2:
+    case MD_P_SFSM_GAMMA3:
+    case MD_P_SFSM_WAIT_R:
+    case MD_P_SFSM_LOST_CYCLES:
+    case MD_P_SFSM_SNR_DROP:
+    case MD_P_SC_TOL_UM:
+    case MD_P_MHTC_Q_UV:
         return md_params_get(&node->params, id);
     case MD_P_COUNT:
     default:

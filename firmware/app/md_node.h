@@ -75,6 +75,10 @@ typedef struct {
     uint32_t node_back;
     uint32_t estop_events;
     uint32_t nmt_refused;
+    uint32_t cycles_done;      ///< electrode cycles completed (md_cycle)
+    uint32_t cycles_skipped;   ///< cycles whose processing failed (md_cycle)
+    uint32_t rec_failed;       ///< recordings aborted/incomplete/timed out (md_cycle)
+    uint32_t moves_failed;     ///< servo moves that failed (md_cycle)
 } md_node_counters_t;
 
 /// Last accepted state of one electrode's peripherals (for the closed loop).
@@ -136,6 +140,14 @@ bool md_node_motion_allowed(const md_node_t *node);
 /// bad electrode/direction, MD_E_IO if the send failed (counted).
 md_status_t md_node_step(md_node_t *node, uint8_t electrode, uint8_t direction, uint16_t steps,
                          uint16_t rate_hz);
+
+/// Sends one frame the controller owns (telemetry, REC_REQ, SIM_STEP, ...):
+/// counted in tx_frames / tx_failures. `fd` marks a CAN FD frame. MD_E_ARG
+/// on a bad length, MD_E_IO if the platform refused it.
+md_status_t md_node_send(md_node_t *node, uint32_t id, const uint8_t *data, int len, bool fd);
+
+/// Sends EMCY_CTRL with `code`, `electrode` and `info` (counted). MD_E_IO on failure.
+md_status_t md_node_emcy(md_node_t *node, md_emcy_code_t code, uint8_t electrode, uint32_t info);
 
 /// Heartbeat Flags byte (MD_HB_FLAG_*) as it would be sent now.
 uint8_t md_node_heartbeat_flags(const md_node_t *node);

@@ -47,6 +47,21 @@ typedef enum {
     MD_P_STEP_RESAMPLE_UM,           ///< Delta_resample (retracting)
     MD_P_DEPTH_MIN_UM,               ///< depth window, shallow end
     MD_P_DEPTH_MAX_UM,               ///< depth window, deep end
+    MD_P_SETTLE_MS,                  ///< wait after a move before the next recording
+    MD_P_MIN_RATE_HZ,                ///< firing rate that counts as "spikes seen" (SFSM)
+    MD_P_SERVO_TOL_UM,               ///< servo: converged within this distance of the target
+    MD_P_SERVO_MAX_ITER,             ///< servo: step commands per move at most
+    MD_P_SERVO_AVG_N,                ///< servo: Hall readings averaged per measurement
+    MD_P_SERVO_STEP_NM,              ///< servo: initial estimate of one piezo step
+    MD_P_SERVO_RATE_HZ,              ///< servo: ACT_CMD step rate
+    MD_P_SFSM_GAMMA1,                ///< SFSM γ1: IQM to follow the gradient
+    MD_P_SFSM_GAMMA2,                ///< SFSM γ2: IQM to declare isolation at the peak
+    MD_P_SFSM_GAMMA3,                ///< SFSM γ3: IQM to declare isolation at once
+    MD_P_SFSM_WAIT_R,                ///< SFSM R of WAIT transitions
+    MD_P_SFSM_LOST_CYCLES,           ///< SFSM cycles without a dominant track before Spike Search
+    MD_P_SFSM_SNR_DROP,              ///< SFSM fraction of the isolation SNR that ends Neuron Isolated
+    MD_P_SC_TOL_UM,                  ///< SNR-curve optimiser ε (eq. 2.1 converged)
+    MD_P_MHTC_Q_UV,                  ///< MHTC process noise std per waveform sample and interval
     /* diagnostics (0x3xxx), read-only */
     MD_P_NODE_STATE,
     MD_P_ESTOP_LATCHED,
@@ -65,6 +80,10 @@ typedef enum {
     MD_P_NODE_BACK,
     MD_P_ESTOP_EVENTS,
     MD_P_NMT_REFUSED,
+    MD_P_CYCLES_DONE,
+    MD_P_CYCLES_SKIPPED,
+    MD_P_RECORDINGS_FAILED,
+    MD_P_MOVES_FAILED,
     MD_P_COUNT
 } md_param_id_t;
 

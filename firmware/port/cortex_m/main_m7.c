@@ -1,6 +1,7 @@
 /* microdrive-fw-m7: the firmware image for the Cortex-M7 (QEMU mps2-an500).
  *
- * Brings the platform up (port, clock), initialises the controller node when
+ * Brings the platform up (port, clock), initialises the controller
+ * (md_controller.h, the same API as microdrive-fw and the session launcher) when
  * the build has one (md_app, MD_M7_HAVE_APP), runs a bounded idle loop that
  * polls it, and reports. Under QEMU there is no CAN controller: the stub port
  * counts what the node sends and nothing is ever received. The image is built
@@ -12,7 +13,7 @@
 #include "md_m7_startup.h"
 #include "md_port_m7.h"
 #if defined(MD_M7_HAVE_APP)
-#include "md_node.h"
+#include "md_controller.h"
 #endif
 
 /* Frames taken from the CAN controller per loop iteration at most. */
@@ -37,9 +38,10 @@ int main(void)
 
     const uint64_t t0_us = port.now_us(port.ctx);
 #if defined(MD_M7_HAVE_APP)
-    static md_node_t node; /* the controller's whole state: static, no heap */
-    if (md_node_init(&node, &port, t0_us) != MD_OK) {
-        md_sh_write0("microdrive-fw-m7: md_node_init failed\n");
+    /* the whole controller (node + electrode cycles + shared workspace): static, no heap */
+    md_controller_t *ctl = md_controller_instance();
+    if (md_controller_init(ctl, &port, t0_us) != MD_OK) {
+        md_sh_write0("microdrive-fw-m7: md_controller_init failed\n");
         return 3;
     }
 #endif
@@ -50,9 +52,11 @@ int main(void)
         /* Received frames go into the node first (none under QEMU). */
         md_frame_t rx;
         for (uint32_t k = 0u; k < MD_M7_RX_BURST && md_port_m7_receive(&port_ctx, &rx); ++k) {
-            (void)md_node_on_frame(&node, &rx, now_us); /* rejections are counted by the node */
+            md_controller_on_frame(ctl, &rx, now_us); /* rejections are counted by the node */
         }
-        if (md_node_poll(&node, now_us) != MD_OK) {
+        const uint32_t tx_failures = ctl->node.counters.tx_failures;
+        md_controller_poll(ctl, now_us);
+        if (ctl->node.counters.tx_failures != tx_failures) {
             poll_errors++;
         }
 #else

@@ -1,8 +1,9 @@
 /// @file main_posix.c
 /// microdrive-fw: the controller firmware as a Linux process. The platform
 /// part of the libcanard pattern: owns the bus endpoint and the clock, pushes
-/// received frames into md_node, sleeps in the bus receive until the node's
-/// next deadline. No heap (md_no_heap.h; the binary is checked with nm).
+/// received frames into the controller (md_controller.h: node + electrode
+/// cycles), sleeps in the bus receive until the controller's next deadline.
+/// No heap (md_no_heap.h; the binary is checked with nm).
 #include <errno.h>
 #include <getopt.h>
 #include <signal.h>
@@ -12,7 +13,7 @@
 #include <time.h>
 
 #include "md_bus.h"
-#include "md_node.h"
+#include "md_controller.h"
 
 /// Longest single wait in the receive call, so that a signal is noticed soon
 /// even though the bus layer restarts its wait after EINTR.
@@ -167,14 +168,14 @@ static void install_signals(void)
 }
 
 /* The platform loop: poll, then wait for a frame until the next deadline. */
-static int run(md_node_t *node, posix_port_ctx_t *pc)
+static int run(md_controller_t *ctl, posix_port_ctx_t *pc)
 {
     uint64_t bus_errors = 0u;
     while (g_stop == 0) {
-        (void)md_node_poll(node, mono_us()); /* failures are counted by the node */
+        md_controller_poll(ctl, mono_us()); /* failures are counted by the node */
         for (int burst = 0; burst < RX_BURST && g_stop == 0; ++burst) {
             const uint64_t now = mono_us();
-            const uint64_t deadline = md_node_next_deadline_us(node, now);
+            const uint64_t deadline = md_controller_next_deadline_us(ctl);
             if (deadline <= now) {
                 break; /* periodic work is due */
             }
@@ -182,7 +183,7 @@ static int run(md_node_t *node, posix_port_ctx_t *pc)
             md_frame_t frame;
             const int r = md_bus_receive(&pc->bus, &frame, wait_us);
             if (r == 1) {
-                (void)md_node_on_frame(node, &frame, mono_us()); /* rejections are counted by the node */
+                md_controller_on_frame(ctl, &frame, mono_us()); /* rejections are counted by the node */
                 continue;
             }
             if (r < 0) {
@@ -203,17 +204,19 @@ static void print_summary(const md_node_t *node, const posix_port_ctx_t *pc)
     (void)fprintf(stderr,
                   "microdrive-fw: exit: rx %u (malformed %u, unknown id %u, bad length %u, bad range %u, "
                   "bad sequence %u, id conflict %u), tx %u, send failures %u (port %llu), emcy %u, "
-                  "heartbeat lost %u, e-stops %u%s\n",
+                  "heartbeat lost %u, e-stops %u, cycles %u (skipped %u, recordings failed %u, moves failed %u)%s\n",
                   (unsigned)c->rx_frames, (unsigned)c->rx_malformed, (unsigned)c->rx_unknown_id,
                   (unsigned)c->rx_bad_length, (unsigned)c->rx_bad_range, (unsigned)c->rx_bad_sequence,
                   (unsigned)c->rx_id_conflict, (unsigned)c->tx_frames, (unsigned)c->tx_failures,
                   (unsigned long long)pc->send_failures, (unsigned)c->emcy_sent, (unsigned)c->heartbeat_lost,
-                  (unsigned)c->estop_events, node->estop_latched ? ", e-stop LATCHED" : "");
+                  (unsigned)c->estop_events, (unsigned)c->cycles_done, (unsigned)c->cycles_skipped,
+                  (unsigned)c->rec_failed, (unsigned)c->moves_failed, node->estop_latched ? ", e-stop LATCHED" : "");
 }
 
 int main(int argc, char **argv)
 {
-    static md_node_t node;          /* the controller's whole state: static, no heap */
+    md_controller_t *ctl = md_controller_instance(); /* the controller's whole state: static, no heap */
+    md_node_t *node = md_controller_node(ctl);
     static posix_port_ctx_t port_ctx;
     options_t opt = {"auto", NULL, NULL, 0};
     const int parsed = parse_options(argc, argv, &opt);
@@ -224,7 +227,7 @@ int main(int argc, char **argv)
         return parsed < 0 ? 2 : 0;
     }
     const md_port_t port = {port_send, port_now_us, &port_ctx};
-    if (md_node_init(&node, &port, mono_us()) != MD_OK || configure(&node, &opt) != 0) {
+    if (md_controller_init(ctl, &port, mono_us()) != MD_OK || configure(node, &opt) != 0) {
         return 2;
     }
     char why[160];
@@ -236,11 +239,11 @@ int main(int argc, char **argv)
     (void)fprintf(stderr, "microdrive-fw: bus %s: %s\n", port_ctx.bus.name, why);
     (void)fprintf(stderr, "microdrive-fw: node %u, protocol %u, %u electrodes, heartbeat %u ms, timeout %u ms\n",
                   (unsigned)MD_NODE_CTRL, (unsigned)MD_PROTOCOL_VERSION, (unsigned)MD_ELECTRODES,
-                  (unsigned)md_params_get_u32(&node.params, MD_P_HEARTBEAT_PERIOD_MS),
-                  (unsigned)md_params_get_u32(&node.params, MD_P_HEARTBEAT_TIMEOUT_MS));
+                  (unsigned)md_params_get_u32(&node->params, MD_P_HEARTBEAT_PERIOD_MS),
+                  (unsigned)md_params_get_u32(&node->params, MD_P_HEARTBEAT_TIMEOUT_MS));
     install_signals();
-    const int loop_rc = run(&node, &port_ctx);
-    print_summary(&node, &port_ctx);
+    const int loop_rc = run(ctl, &port_ctx);
+    print_summary(node, &port_ctx);
     md_bus_close(&port_ctx.bus);
     return loop_rc == 0 ? 0 : 1;
 }
