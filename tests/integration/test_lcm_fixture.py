@@ -40,6 +40,11 @@ def truth_snr(peak, peak_depth, depth):
     return 1.0 + (peak - 1.0) * math.exp(-((depth - peak_depth) / 45.0) ** 2)
 
 
+def peak_depth(n, k):
+    """SNR-peak depth of a neuron in cycle k: the tissue drifts deeper from cycle 8 on."""
+    return n["peak_depth"] + n.get("drift", 0.0) * max(0, k - 8)
+
+
 def waveform(shape_seed, amp):
     """A biphasic mean waveform, uV, WAVE_LEN samples."""
     out = []
@@ -92,8 +97,10 @@ def make_session(db, out, cycles, seed):
     exp = {k: [] for k in ("MD_STATUS", "MD_CYCLE", "MD_TRACKS", "MD_HYPOTHESES", "MD_SPIKES", "MD_ACTUATOR",
                            "MD_HALL", "MD_HALL_CALIB", "MD_TRUTH_STATE", "MD_TRUTH_DEATH")}
     els = [
-        Electrode(0, 1100.0, [dict(id=0, peak=14.0, peak_depth=1200.0, rate=6.0, pc=(-40.0, 10.0), amp=160, shape=1.0),
-                              dict(id=1, peak=9.0, peak_depth=1250.0, rate=4.0, pc=(25.0, -20.0), amp=110, shape=-0.5)]),
+        Electrode(0, 1100.0, [dict(id=0, peak=14.0, peak_depth=1200.0, rate=6.0, pc=(-40.0, 10.0), amp=160, shape=1.0,
+                                   drift=4.0),
+                              dict(id=1, peak=10.0, peak_depth=1220.0, rate=4.0, pc=(25.0, -20.0), amp=110, shape=0.3,
+                                   drift=4.0)]),
         Electrode(1, 1300.0, [dict(id=0, peak=11.0, peak_depth=1340.0, rate=8.0, pc=(10.0, 30.0), amp=130,
                                    shape=0.6)], kill_cycle=cycles // 2),
     ]
@@ -123,12 +130,12 @@ def make_session(db, out, cycles, seed):
         spikes = {e.index: truth_spikes(truth, rnd, e, k, t0, alive) for e in els}
         w.clock(t1)
         for e in els:
+            cycle_frames_end(w, rnd, e, k, t0, t1, spikes[e.index], alive, exp)
             if e.kill_cycle == k:
                 alive[(e.index, 0)] = False
                 truth.write(json.dumps({"type": "death", "electrode": e.index, "neuron": 0,
                                         "t_s": t1 / 1e6, "distance_um": 9.5}) + "\n")
                 exp["MD_TRUTH_DEATH"].append({"electrode": e.index, "neuron": 0, "utime": t1})
-            cycle_frames_end(w, rnd, e, k, t0, t1, spikes[e.index], alive, exp)
         plant_frames(w, els, k, t1, exp)
     w.f.close()
     truth.close()
@@ -147,10 +154,10 @@ def truth_state(truth, e, k, t0, alive, exp):
     rows = []
     for n in e.neurons:
         a = alive[(e.index, n["id"])]
-        rows.append({"neuron": n["id"], "depth_um": n["peak_depth"], "alive": a,
-                     "distance_um": abs(n["peak_depth"] - e.depth) + 20.0,
-                     "snr": round(truth_snr(n["peak"], n["peak_depth"], e.depth) if a else 0.0, 4),
-                     "snr_peak_depth_um": n["peak_depth"], "snr_peak": n["peak"]})
+        pd = peak_depth(n, k)
+        rows.append({"neuron": n["id"], "depth_um": pd, "alive": a, "distance_um": abs(pd - e.depth) + 20.0,
+                     "snr": round(truth_snr(n["peak"], pd, e.depth) if a else 0.0, 4),
+                     "snr_peak_depth_um": pd, "snr_peak": n["peak"]})
     rec = {"type": "state", "t_s": t0 / 1e6, "label": f"interval {k}", "electrode": e.index,
            "tip_um": round(e.depth, 4), "neurons": rows}
     truth.write(json.dumps(rec) + "\n")
@@ -175,13 +182,13 @@ def truth_spikes(truth, rnd, e, k, t0, alive):
     return [(s - start, nid) for s, nid in out]
 
 
-def update_tracks(e, k, alive):
+def update_tracks(rnd, e, k, alive):
     """Tracks of this cycle: (neuron, track dict, detected, snr)."""
     rows = []
     for n in e.neurons:
         a = alive[(e.index, n["id"])]
-        snr = truth_snr(n["peak"], n["peak_depth"], e.depth) if a else 0.0
-        detected = a and snr > 3.0 and not (n["id"] == 1 and e.index == 0 and k in (14, 15))
+        snr = truth_snr(n["peak"], peak_depth(n, k), e.depth) * (1.0 + rnd.gauss(0.0, 0.06)) if a else 0.0
+        detected = a and snr > 3.0 and not (n["id"] == 1 and e.index == 0 and k in (16, 17))
         tr = e.tracks.get(n["id"])
         if tr is None and detected:
             tr = e.tracks[n["id"]] = {"id": e.next_track, "missed": 0}
@@ -198,8 +205,15 @@ def update_tracks(e, k, alive):
 
 def sfsm_step(e, rows):
     best = max((r[3] for r in rows if r[2]), default=0.0)
-    if e.state == 3 and best < 3.0:
+    e.best_seen = max(getattr(e, "best_seen", 0.0), best)
+    if e.state in (3, 5) and best < 3.0:
         e.state = 0
+    elif e.state == 3 and best < 0.85 * e.best_seen:
+        e.state = 5
+    elif e.state == 5 and best > 0.95 * e.best_seen:
+        e.state = 3
+    elif e.state == 5:
+        pass
     elif not rows:
         e.state = 0
     elif e.state in (0, 1) and best > 6.0:
@@ -208,7 +222,7 @@ def sfsm_step(e, rows):
         e.state = 1
     elif e.state == 2 and best > 12.0:
         e.state = 3
-    step = {0: 20.0, 1: 12.0, 2: 6.0, 3: 0.0}[e.state]
+    step = {0: 20.0, 1: 12.0, 2: 6.0, 3: 0.0, 5: 8.0}[e.state]
     return best, step
 
 
@@ -217,14 +231,14 @@ def cycle_frames_end(w, rnd, e, k, t0, t1, spikes, alive, exp):
             NumSamples=int(INTERVAL_S * FS), StartTime_us=t0)
     exp["MD_CYCLE"].append({"electrode": e.index, "phase": 1, "cycle": k, "interval_id": k, "utime": t1,
                             "start_time_us": t0, "num_samples": int(INTERVAL_S * FS), "sample_rate_hz": FS})
-    rows = update_tracks(e, k, alive)
+    rows = update_tracks(rnd, e, k, alive)
     best, step = sfsm_step(e, rows)
     tracks = {"electrode": e.index, "cycle": k, "utime": t1, "track_id": [], "spike_count": [], "mean_pc": [],
               "snr": [], "missed": [], "wave": []}
     label = {}
     for idx, (n, tr, detected, snr) in enumerate(rows):
-        drift = 0.05 * (e.depth - 1100.0)
-        pc = (round(n["pc"][0] + drift + rnd.gauss(0, 1.5), 2), round(n["pc"][1] - 0.5 * drift + rnd.gauss(0, 1.5), 2))
+        drift = 0.2 * (e.depth - peak_depth(n, k))
+        pc = (round(n["pc"][0] + drift + rnd.gauss(0, 0.6), 2), round(n["pc"][1] - 0.5 * drift + rnd.gauss(0, 0.6), 2))
         count = sum(1 for _, nid in spikes if nid == n["id"]) if detected else 0
         w.frame(t1, "TLM_TRACK", Electrode=e.index, Index=idx, TrackId=tr["id"], Cycle=k, SpikeCount=count,
                 MeanPc1=pc[0], MeanPc2=pc[1], Snr=round(snr, 3), Missed=tr["missed"])
@@ -239,14 +253,15 @@ def cycle_frames_end(w, rnd, e, k, t0, t1, spikes, alive, exp):
         if detected:
             label[n["id"]] = tr["id"]
     exp["MD_TRACKS"].append(tracks)
-    hyps = hypotheses(w, e, k, t1, len(rows))
+    hyps = hypotheses(w, rnd, e, k, t1, len(rows))
     exp["MD_HYPOTHESES"].append(hyps)
     sp = spikes_frames(w, rnd, e, k, t0, t1, spikes, label)
     exp["MD_SPIKES"].append(sp)
     target = e.depth + step
+    iqm = round(1.0 - math.exp(-best / 4.0) - 0.05 * rnd.random(), 3) if best > 0 else 0.0
     dom = rows[0][1]["id"] if rows and rows[0][2] else 0xFFFF
     w.frame(t1, "TLM_STATUS", Electrode=e.index, SfsmState=e.state, Cycle=k, Depth_um=round(e.depth, 2),
-            TargetDepth_um=round(target, 2), Snr=round(best, 3), Iqm=round(min(1.0, best / 15.0), 3),
+            TargetDepth_um=round(target, 2), Snr=round(best, 3), Iqm=iqm,
             DominantTrack=dom, NumTracks=len(rows), NumHypotheses=len(hyps["rank"]), Flags=0,
             NumSpikes=len(sp["sample"]))
     exp["MD_STATUS"].append({"electrode": e.index, "cycle": k, "utime": t1, "sfsm_state": e.state,
@@ -256,9 +271,10 @@ def cycle_frames_end(w, rnd, e, k, t0, t1, spikes, alive, exp):
     e.step = step
 
 
-def hypotheses(w, e, k, t1, ntracks):
+def hypotheses(w, rnd, e, k, t1, ntracks):
     n = 8 if ntracks else 1
-    lp = [math.log(p) for p in normalised([0.6 ** r for r in range(n)])]
+    ratio = 0.2 + 0.6 * rnd.random()
+    lp = [math.log(p) for p in normalised([ratio ** r for r in range(n)])]
     out = {"electrode": e.index, "cycle": k, "utime": t1, "rank": [], "hyp_id": [], "log_prob": [], "model_g": []}
     for r in range(n):
         e.hyp_id += 1

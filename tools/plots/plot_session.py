@@ -1,0 +1,323 @@
+#!/usr/bin/env python3
+"""Plots of one microdrive session from its LCM log (docs/telemetry.md).
+
+    .venv/bin/python tools/plots/plot_session.py LOG --out DIR [--types <build>/common/lcm/python]
+
+Writes into DIR (one row of panels per electrode in every figure):
+  tracks_pc.png   track means in PC1/PC2 (plane, and each against time), IDs, missed detections as x
+  waveforms.png   mean waveform of every track, one curve per cycle (light = early, dark = late)
+  status.png      SFSM state, SNR and IQM, depth / target depth / Hall depth / true tip against time
+  hypotheses.png  log-probability of every hypothesis rank, and the probability mass per rank
+  truth.png       tracks against the simulator's ground truth: SNR, depth, spike matching
+Prints the files written. Exit 1 if the log holds no telemetry at all.
+"""
+import argparse
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from lcm_session import SFSM_STATES, read_log  # noqa: E402
+
+MATCH_TOL_S = 0.0005  # a detection matches a true spike within 0.5 ms
+
+
+def minutes(utime):
+    return utime / 60e6
+
+
+def track_color(track_id):
+    return plt.get_cmap("tab10")(track_id % 10)
+
+
+def electrodes_of(s):
+    found = set()
+    for ch in ("MD_STATUS", "MD_TRACKS", "MD_HYPOTHESES", "MD_TRUTH_STATE"):
+        found.update(m.electrode for m in s[ch])
+    return sorted(found) or [0]
+
+
+def interval_starts(s):
+    """{(electrode, cycle): start time of the interval (us)} from MD_CYCLE."""
+    return {(m.electrode, m.cycle): m.start_time_us for m in s["MD_CYCLE"]}
+
+
+def track_history(s, e, at_interval_start=False):
+    """{track id: list of (t_min, pc1, pc2, missed, snr)} of electrode e, stamped with the message time
+    or, at_interval_start, with the start of the interval the tracks describe."""
+    starts = interval_starts(s) if at_interval_start else {}
+    hist = {}
+    for m in s["MD_TRACKS"]:
+        if m.electrode != e:
+            continue
+        t = minutes(starts.get((m.electrode, m.cycle), m.utime))
+        for k in range(m.num_tracks):
+            hist.setdefault(m.track_id[k], []).append((t, m.mean_pc[k][0], m.mean_pc[k][1], m.missed[k], m.snr[k]))
+    return hist
+
+
+def new_figure(rows, cols, w=5.0, h=3.4):
+    fig, ax = plt.subplots(rows, cols, figsize=(w * cols, h * rows), squeeze=False)
+    return fig, ax
+
+
+def save(fig, out, name, title):
+    fig.suptitle(title)
+    fig.tight_layout()
+    path = os.path.join(out, name)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def plot_tracks_pc(s, out, els):
+    fig, ax = new_figure(len(els), 3)
+    for r, e in enumerate(els):
+        hist = track_history(s, e)
+        for tid, rows in sorted(hist.items()):
+            a = np.array(rows)
+            c = track_color(tid)
+            det, miss = a[:, 3] == 0, a[:, 3] > 0
+            ax[r, 0].plot(a[:, 1], a[:, 2], "-", color=c, lw=0.8)
+            ax[r, 0].plot(a[det, 1], a[det, 2], "o", color=c, ms=3)
+            ax[r, 0].plot(a[miss, 1], a[miss, 2], "x", color="k", ms=6, mew=1.5)
+            ax[r, 0].annotate(f"T{tid}", (a[-1, 1], a[-1, 2]), xytext=(4, 4), textcoords="offset points", color=c)
+            for col, dim in ((1, 1), (2, 2)):
+                ax[r, col].plot(a[:, 0], a[:, dim], "-", color=c, lw=0.8, label=f"T{tid}")
+                ax[r, col].plot(a[det, 0], a[det, dim], "o", color=c, ms=3)
+                ax[r, col].plot(a[miss, 0], a[miss, dim], "x", color="k", ms=6, mew=1.5)
+        ax[r, 0].set(xlabel="PC1", ylabel="PC2", title=f"electrode {e}: track means (x = missed)")
+        ax[r, 1].set(xlabel="time (min)", ylabel="PC1", title=f"electrode {e}: PC1 over time")
+        ax[r, 2].set(xlabel="time (min)", ylabel="PC2", title=f"electrode {e}: PC2 over time")
+        if hist:
+            ax[r, 1].legend(fontsize=7, loc="best")
+        else:
+            ax[r, 0].text(0.5, 0.5, "no tracks", ha="center", transform=ax[r, 0].transAxes)
+    return save(fig, out, "tracks_pc.png", "Tracks in each interval's PCA space (PC1/PC2)")
+
+
+def sample_rate(s):
+    rates = [m.sample_rate_hz for m in s["MD_CYCLE"] if m.sample_rate_hz > 0]
+    return float(rates[0]) if rates else 0.0
+
+
+def track_waves(s, e):
+    """{track id: list of (t_min, wave)}, trailing samples that are zero in every cycle of a track
+    removed (TLM_WAVE parts are padded to 28 samples)."""
+    waves = {}
+    for m in s["MD_TRACKS"]:
+        if m.electrode != e:
+            continue
+        for k in range(m.num_tracks):
+            if m.wave_samples[k] > 0:
+                waves.setdefault(m.track_id[k], []).append((minutes(m.utime),
+                                                            np.array(m.mean_wave_uv[k][:m.wave_samples[k]])))
+    for tid, rows in waves.items():
+        n = max(len(w) for _, w in rows)
+        stack = np.zeros((len(rows), n))
+        for i, (_, w) in enumerate(rows):
+            stack[i, :len(w)] = w
+        nz = np.nonzero(np.any(stack != 0, axis=0))[0]
+        keep = int(nz[-1]) + 1 if len(nz) else n
+        waves[tid] = [(t, w[:keep]) for t, w in rows]
+    return waves
+
+
+def plot_waveforms(s, out, els):
+    per_el = {e: track_waves(s, e) for e in els}
+    cols = max(1, min(6, max(len(v) for v in per_el.values())))
+    fig, ax = new_figure(len(els), cols, w=3.6, h=3.0)
+    fs = sample_rate(s)
+    cmap = plt.get_cmap("viridis")
+    for r, e in enumerate(els):
+        items = sorted(per_el[e].items())
+        for c in range(cols):
+            a = ax[r, c]
+            if c >= len(items):
+                a.axis("off")
+                continue
+            tid, rows = items[c]
+            for i, (_, w) in enumerate(rows):
+                x = np.arange(len(w)) * (1e3 / fs if fs > 0 else 1.0)
+                a.plot(x, w, color=cmap(i / max(1, len(rows) - 1)), lw=0.8)
+            a.plot(x, rows[-1][1], color="k", lw=1.6)
+            a.set(title=f"e{e} T{tid}: {len(rows)} cycles", xlabel="ms" if fs > 0 else "sample", ylabel="uV")
+        if not items:
+            ax[r, 0].axis("on")
+            ax[r, 0].text(0.5, 0.5, f"electrode {e}: no waveforms", ha="center", transform=ax[r, 0].transAxes)
+    return save(fig, out, "waveforms.png", "Mean waveform per track (light = early cycles, black = last)")
+
+
+def series(msgs, e, *fields):
+    rows = [(minutes(m.utime),) + tuple(getattr(m, f) for f in fields) for m in msgs if m.electrode == e]
+    return np.array(rows) if rows else np.zeros((0, 1 + len(fields)))
+
+
+def plot_status(s, out, els):
+    fig, ax = new_figure(3, len(els), w=5.2, h=3.0)
+    for c, e in enumerate(els):
+        st = series(s["MD_STATUS"], e, "sfsm_state", "snr", "iqm", "depth_um", "target_depth_um")
+        ax[0, c].step(st[:, 0], st[:, 1], where="post", color="C0")
+        ax[0, c].set_yticks(range(len(SFSM_STATES)), SFSM_STATES, fontsize=7)
+        ax[0, c].set_ylim(-0.5, len(SFSM_STATES) - 0.5)
+        ax[0, c].set(title=f"electrode {e}: SFSM state", xlabel="time (min)")
+        ax[1, c].plot(st[:, 0], st[:, 2], "o-", ms=3, color="C1", label="SNR")
+        ax[1, c].set(title=f"electrode {e}: SNR and IQM (dominant track)", xlabel="time (min)", ylabel="SNR")
+        iqm = ax[1, c].twinx()
+        iqm.plot(st[:, 0], st[:, 3], "s--", ms=3, color="C2", label="IQM")
+        iqm.set_ylabel("IQM", color="C2")
+        ax[1, c].legend(loc="upper left", fontsize=7)
+        iqm.legend(loc="lower right", fontsize=7)
+        hall = series([m for m in s["MD_HALL"] if m.calibrated], e, "depth_um")
+        tip = series(s["MD_TRUTH_STATE"], e, "tip_um")
+        ax[2, c].plot(hall[:, 0], hall[:, 1], "-", color="0.7", lw=2.5, label="Hall depth")
+        ax[2, c].plot(st[:, 0], st[:, 4], "o-", ms=3, color="C0", label="depth (controller)")
+        ax[2, c].plot(st[:, 0], st[:, 5], "v", ms=4, color="C3", label="target depth")
+        if len(tip):
+            ax[2, c].plot(tip[:, 0], tip[:, 1], ":", color="k", label="true tip")
+        ax[2, c].invert_yaxis()
+        ax[2, c].set(title=f"electrode {e}: depth", xlabel="time (min)", ylabel="depth (um)")
+        ax[2, c].legend(fontsize=7)
+    return save(fig, out, "status.png", "Controller status per electrode")
+
+
+def plot_hypotheses(s, out, els):
+    fig, ax = new_figure(len(els), 2)
+    for r, e in enumerate(els):
+        msgs = [m for m in s["MD_HYPOTHESES"] if m.electrode == e]
+        n_rank = max([m.num_hypotheses for m in msgs] + [1])
+        t = np.array([minutes(m.utime) for m in msgs])
+        lp = np.full((len(msgs), n_rank), np.nan)
+        for i, m in enumerate(msgs):
+            for k in range(m.num_hypotheses):
+                lp[i, m.rank[k]] = m.log_prob[k]
+        cmap = plt.get_cmap("plasma")
+        for k in range(n_rank):
+            ax[r, 0].plot(t, lp[:, k], "o-", ms=2, lw=2.2 if k == 0 else 0.8, color=cmap(k / max(1, n_rank)),
+                          label=f"rank {k}")
+        ax[r, 0].set(title=f"electrode {e}: log-probability per rank", xlabel="time (min)", ylabel="log P")
+        ax[r, 0].legend(fontsize=6, ncol=2)
+        p = np.nan_to_num(np.exp(lp))
+        if len(t):
+            ax[r, 1].stackplot(t, p.T, colors=[cmap(k / max(1, n_rank)) for k in range(n_rank)],
+                               labels=[f"rank {k}" for k in range(n_rank)])
+        ax[r, 1].set(title=f"electrode {e}: probability mass by rank", xlabel="time (min)", ylabel="P",
+                     ylim=(0, 1.05))
+    return save(fig, out, "hypotheses.png", "Hypothesis rank history")
+
+
+def match_spikes(s, e):
+    """Counts of (track label, true neuron) over matched detections; unmatched under neuron None."""
+    truth = [(m.sample, m.neuron, m.sample_rate_hz) for m in s["MD_TRUTH_SPIKES"] if m.electrode == e]
+    if not truth:
+        return {}
+    fs = truth[0][2]
+    t_true = np.concatenate([np.asarray(t, dtype=float) / fs for t, _, _ in truth])
+    n_true = np.concatenate([np.asarray(n) for _, n, _ in truth])
+    order = np.argsort(t_true)
+    t_true, n_true = t_true[order], n_true[order]
+    counts = {}
+    for m in s["MD_SPIKES"]:
+        if m.electrode != e or m.sample_rate_hz <= 0 or m.interval_start_us < 0:
+            continue
+        t_det = m.interval_start_us / 1e6 + np.asarray(m.sample, dtype=float) / m.sample_rate_hz
+        idx = np.clip(np.searchsorted(t_true, t_det), 1, max(1, len(t_true) - 1))
+        for j, td in enumerate(t_det):
+            cand = [i for i in (idx[j] - 1, idx[j]) if 0 <= i < len(t_true)]
+            best = min(cand, key=lambda i: abs(t_true[i] - td))
+            neuron = int(n_true[best]) if abs(t_true[best] - td) <= MATCH_TOL_S else None
+            key = (int(m.track_id[j]), neuron)
+            counts[key] = counts.get(key, 0) + 1
+    return counts
+
+
+def plot_matrix(a, counts, e):
+    tracks = sorted({k[0] for k in counts})
+    neurons = sorted({k[1] for k in counts if k[1] is not None}) + [None]
+    mat = np.array([[counts.get((t, n), 0) for n in neurons] for t in tracks])
+    a.imshow(mat, cmap="Blues", aspect="auto")
+    for i in range(len(tracks)):
+        for j in range(len(neurons)):
+            a.text(j, i, str(mat[i, j]), ha="center", va="center", fontsize=7,
+                   color="w" if mat[i, j] > mat.max() / 2 else "k")
+    a.set_xticks(range(len(neurons)), [f"N{n}" if n is not None else "none" for n in neurons], fontsize=7)
+    a.set_yticks(range(len(tracks)), [{-1: "outlier", -2: "unlabelled"}.get(t, f"T{t}") for t in tracks],
+                 fontsize=7)
+    a.set(title=f"electrode {e}: detections by track vs true neuron", xlabel="true neuron (0.5 ms)",
+          ylabel="track label")
+
+
+def plot_truth(s, out, els):
+    fig, ax = new_figure(len(els), 3)
+    have_truth = bool(s["MD_TRUTH_STATE"])
+    deaths = s["MD_TRUTH_DEATH"]
+    for r, e in enumerate(els):
+        states = [m for m in s["MD_TRUTH_STATE"] if m.electrode == e]
+        true_snr, peak_depth = {}, {}
+        for m in states:
+            for k in range(m.num_neurons):
+                true_snr.setdefault(m.neuron[k], []).append((minutes(m.utime), m.snr[k]))
+                peak_depth.setdefault(m.neuron[k], []).append((minutes(m.utime), m.snr_peak_depth_um[k]))
+        for nid, rows in sorted(true_snr.items()):
+            a = np.array(rows)
+            ax[r, 0].plot(a[:, 0], a[:, 1], "--", color="0.4", lw=1)
+            ax[r, 0].annotate(f"N{nid} true", (a[-1, 0], a[-1, 1]), fontsize=7, color="0.3")
+        for tid, rows in sorted(track_history(s, e, at_interval_start=True).items()):
+            a = np.array(rows)
+            ax[r, 0].plot(a[:, 0], a[:, 4], "o-", ms=3, color=track_color(tid), label=f"T{tid}")
+        for d in deaths:
+            if d.electrode == e:
+                ax[r, 0].axvline(minutes(d.utime), color="r", lw=1)
+                ax[r, 0].annotate(f"N{d.neuron} dies", (minutes(d.utime), 0), color="r", fontsize=7)
+        ax[r, 0].set(title=f"electrode {e}: track SNR vs true neuron SNR", xlabel="interval start (min)",
+                     ylabel="SNR")
+        ax[r, 0].legend(fontsize=7)
+        starts = interval_starts(s)
+        st = np.array([(minutes(starts.get((m.electrode, m.cycle), m.utime)), m.depth_um)
+                       for m in s["MD_STATUS"] if m.electrode == e]).reshape(-1, 2)
+        tip = series(states, e, "tip_um")
+        ax[r, 1].plot(st[:, 0], st[:, 1], "o-", ms=3, color="C0", label="controller depth")
+        ax[r, 1].plot(tip[:, 0], tip[:, 1], ":", color="k", lw=2, label="true tip")
+        for nid, rows in sorted(peak_depth.items()):
+            a = np.array(rows)
+            ax[r, 1].plot(a[:, 0], a[:, 1], "--", color="0.5", lw=1)
+            ax[r, 1].annotate(f"N{nid} SNR peak", (a[-1, 0], a[-1, 1]), fontsize=7, color="0.3")
+        ax[r, 1].invert_yaxis()
+        ax[r, 1].set(title=f"electrode {e}: depth vs true SNR peaks", xlabel="interval start (min)",
+                     ylabel="depth (um)")
+        ax[r, 1].legend(fontsize=7)
+        counts = match_spikes(s, e)
+        if counts:
+            plot_matrix(ax[r, 2], counts, e)
+        else:
+            ax[r, 2].axis("off")
+            ax[r, 2].text(0.5, 0.5, "no detected or true spikes", ha="center", transform=ax[r, 2].transAxes)
+        if not have_truth:
+            ax[r, 0].text(0.5, 0.5, "no ground truth in this log", ha="center", transform=ax[r, 0].transAxes)
+    return save(fig, out, "truth.png", "Tracks against the simulator's ground truth")
+
+
+def main():
+    ap = argparse.ArgumentParser(description="Plots of a microdrive session from its LCM log")
+    ap.add_argument("log")
+    ap.add_argument("--out", required=True, help="directory for the PNG files (the session folder)")
+    ap.add_argument("--types", help="lcm-gen -p output dir (<build>/common/lcm/python); default: generate")
+    a = ap.parse_args()
+    s = read_log(a.log, a.types)
+    if not any(s[ch] for ch in ("MD_STATUS", "MD_TRACKS", "MD_HALL", "MD_ACTUATOR", "MD_TRUTH_STATE")):
+        print(f"plot_session: {a.log} holds no microdrive telemetry", file=sys.stderr)
+        return 1
+    os.makedirs(a.out, exist_ok=True)
+    els = electrodes_of(s)
+    for f in (plot_tracks_pc, plot_waveforms, plot_status, plot_hypotheses, plot_truth):
+        print(f(s, a.out, els))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
