@@ -473,6 +473,30 @@ void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool
     on_plant_frame(c, f);
 }
 
+/* The next electrode (from the active one, round robin) that can record:
+ * one without FE_INFO yet is passed over. False if none can. */
+static bool take_turn(md_cycle_t *c)
+{
+    for (size_t k = 0u; k < MD_ELECTRODES; ++k) {
+        const uint8_t e = (uint8_t)((c->active + k) % MD_ELECTRODES);
+        if (c->el[e].fe_info) {
+            c->active = e;
+            return true;
+        }
+    }
+    return false;
+}
+
+static bool any_fe_info(const md_cycle_t *c)
+{
+    for (size_t e = 0u; e < MD_ELECTRODES; ++e) {
+        if (c->el[e].fe_info) {
+            return true;
+        }
+    }
+    return false;
+}
+
 /* Motion or recording no longer allowed (e-stop, node lost, not
  * operational): stop what is running; the node has halted the actuators. */
 static void abort_active(md_cycle_t *c, md_node_t *node)
@@ -526,7 +550,7 @@ void md_cycle_poll(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     c->wait = MD_WAIT_NONE;
     switch (el->phase) {
     case MD_CYC_IDLE:
-        if (el->fe_info) {
+        if (take_turn(c)) {
             start_recording(c, node, now_us);
         }
         break;
@@ -552,7 +576,7 @@ uint64_t md_cycle_next_deadline_us(const md_cycle_t *c, const md_node_t *node)
     const bool allowed = md_node_motion_allowed(node);
     const bool op = node->state == MD_NODE_STATE_OPERATIONAL;
     if ((op && !c->was_operational) || el->phase == MD_CYC_PROCESS ||
-        (!allowed && el->phase != MD_CYC_IDLE) || (allowed && el->phase == MD_CYC_IDLE && el->fe_info)) {
+        (!allowed && el->phase != MD_CYC_IDLE) || (allowed && el->phase == MD_CYC_IDLE && any_fe_info(c))) {
         return 0u;
     }
     if (el->phase == MD_CYC_IDLE) {
