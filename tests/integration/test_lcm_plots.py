@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""tools/plots/plot_session.py draws every figure from a session's LCM log.
+
+    test_lcm_plots.py --bridge BIN --dbc DBC --types DIR --work DIR
+
+The crafted session (test_lcm_fixture.py) goes through md-lcm-bridge; the
+plot script must write tracks_pc.png, waveforms.png, status.png,
+hypotheses.png and truth.png, each a real PNG with ink on it (not a blank
+canvas), once with the build's lcm-gen -p types and once generating them
+itself with lcm-gen; a log without telemetry must exit 1.
+"""
+import argparse
+import os
+import struct
+import subprocess
+import sys
+
+import matplotlib.image as mpimg
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+PLOT = os.path.join(HERE, "..", "..", "tools", "plots", "plot_session.py")
+PNGS = ["tracks_pc.png", "waveforms.png", "status.png", "hypotheses.png", "truth.png"]
+
+
+def png_size(path):
+    with open(path, "rb") as f:
+        head = f.read(24)
+    if head[:8] != b"\x89PNG\r\n\x1a\n":
+        return None
+    return struct.unpack(">II", head[16:24])
+
+
+def ink(path):
+    """Fraction of pixels that are not white."""
+    img = mpimg.imread(path)[..., :3]
+    return float(np.mean(np.any(img < 0.95, axis=2)))
+
+
+def check_pngs(out, fails):
+    for name in PNGS:
+        p = os.path.join(out, name)
+        size = png_size(p) if os.path.exists(p) else None
+        if size is None:
+            fails.append(f"{name}: missing or not a PNG")
+            continue
+        frac = ink(p)
+        print(f"  {name}: {size[0]}x{size[1]} px, {100 * frac:.1f} % ink")
+        if size[0] < 400 or size[1] < 250 or frac < 0.03:
+            fails.append(f"{name}: {size} px, {frac:.3f} ink: looks empty")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--bridge", required=True)
+    ap.add_argument("--dbc", required=True)
+    ap.add_argument("--types", required=True)
+    ap.add_argument("--work", required=True)
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    subprocess.run([sys.executable, os.path.join(HERE, "test_lcm_fixture.py"), "--dbc", a.dbc, "--out", a.work],
+                   check=True)
+    log = os.path.join(a.work, "session.lcmlog")
+    subprocess.run([a.bridge, "--quiet", "--from-log", os.path.join(a.work, "candump.log"), "--truth",
+                    os.path.join(a.work, "truth.jsonl"), "--write-log", log], check=True)
+    fails = []
+    for label, extra in (("build types", ["--types", a.types]), ("lcm-gen on the fly", [])):
+        out = os.path.join(a.work, "plots-" + label.split()[0])
+        p = subprocess.run([sys.executable, PLOT, log, "--out", out] + extra, capture_output=True, text=True)
+        print(f"plot_session ({label}): exit {p.returncode}")
+        if p.returncode != 0:
+            fails.append(f"plot_session ({label}) exit {p.returncode}: {p.stderr[-800:]}")
+            continue
+        printed = [os.path.basename(x) for x in p.stdout.split()]
+        if printed != PNGS:
+            fails.append(f"plot_session ({label}) printed {printed}")
+        check_pngs(out, fails)
+    empty = os.path.join(a.work, "empty.lcmlog")
+    subprocess.run([a.bridge, "--quiet", "--from-log", "/dev/null", "--write-log", empty], check=True)
+    p = subprocess.run([sys.executable, PLOT, empty, "--out", os.path.join(a.work, "plots-empty"), "--types",
+                        a.types], capture_output=True, text=True)
+    if p.returncode != 1:
+        fails.append(f"empty log: exit {p.returncode}, expected 1")
+    for f in fails:
+        print("FAIL:", f)
+    return 1 if fails else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
