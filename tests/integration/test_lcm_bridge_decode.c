@@ -239,13 +239,39 @@ static void test_complete_cycle_published_at_status(void)
     microdrive_spikes_t_decode_cleanup(&sp);
 }
 
+/// The controller's order (firmware/app/md_telemetry.c): TLM_STATUS first, TLM_SPIKES
+/// last, one empty TLM_SPIKES part when nothing was detected.
+static void test_controller_order_status_first(void)
+{
+    feed_status(0, 3, 1, 1, 0);
+    feed_track(0, 0, 5, 3, 0.5f, 1);
+    feed_wave(0, 5, 0, 10);
+    feed_wave(0, 5, 1, 20);
+    feed_hyp(0, 0, 3, 0.0f);
+    TEST_ASSERT_EQUAL_INT(0, count(LB_CH_TRACKS)); /* waits for TLM_SPIKES */
+    feed_spikes(0, 3, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_TRACKS));
+    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_SPIKES));
+    TEST_ASSERT_EQUAL_UINT64(0, lb_stats(g_st)->late);
+    feed_status(0, 4, 1, 1, 12); /* next cycle: 12 spikes in two parts */
+    feed_track(0, 0, 5, 4, 0.5f, 0);
+    feed_wave(0, 5, 0, 10);
+    feed_hyp(0, 0, 4, 0.0f);
+    feed_spikes(0, 4, 0, 11, 0);
+    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_SPIKES));
+    feed_spikes(0, 4, 1, 1, 9000);
+    TEST_ASSERT_EQUAL_INT(2, count(LB_CH_SPIKES));
+    TEST_ASSERT_EQUAL_UINT64(0, lb_stats(g_st)->late);
+}
+
 static void test_new_cycle_flushes_incomplete_group_and_late_frames_counted(void)
 {
     feed_track(0, 0, 3, 5, 1.0f, 0); /* no waves, no status: incomplete */
     TEST_ASSERT_EQUAL_INT(0, count(LB_CH_TRACKS));
     feed_hyp(0, 0, 6, 0.0f); /* cycle 6 starts: cycle 5 goes out as it is */
     TEST_ASSERT_EQUAL_INT(1, count(LB_CH_TRACKS));
-    feed_status(0, 6, 0, 1, 0); /* cycle 6 complete: 0 tracks, 1 hypothesis, 0 spikes */
+    feed_status(0, 6, 0, 1, 0);
+    feed_spikes(0, 6, 0, 0, 0); /* cycle 6 complete: 0 tracks, 1 hypothesis, one empty spike part */
     TEST_ASSERT_EQUAL_INT(2, count(LB_CH_TRACKS));
     TEST_ASSERT_EQUAL_INT(2, count(LB_CH_HYPOTHESES));
     feed_track(0, 0, 3, 6, 1.0f, 0); /* after the cycle was published */
@@ -273,8 +299,8 @@ static void test_cycle_record_feeds_spike_times(void)
                                    .start_time_us = 48000000u};
     FEED(tlm_cycle, TLM_CYCLE, &c);
     TEST_ASSERT_EQUAL_INT(1, count(LB_CH_CYCLE));
-    feed_spikes(0, 4, 0, 3, 10);
     feed_status(0, 4, 0, 0, 3);
+    feed_spikes(0, 4, 0, 3, 10);
     const int i = find(LB_CH_SPIKES, 0);
     TEST_ASSERT_TRUE(i >= 0);
     microdrive_spikes_t sp;
@@ -422,6 +448,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_complete_cycle_published_at_status);
+    RUN_TEST(test_controller_order_status_first);
     RUN_TEST(test_new_cycle_flushes_incomplete_group_and_late_frames_counted);
     RUN_TEST(test_flush_publishes_open_groups);
     RUN_TEST(test_cycle_record_feeds_spike_times);

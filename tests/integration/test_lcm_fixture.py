@@ -62,6 +62,15 @@ class Writer:
         self.db = db
         self.f = open(path, "w")
         self.fd_ids = {m.frame_id for m in db.messages if m.length > 8}
+        self.held = None
+
+    def hold(self):
+        """Frames from now on are kept back until release() (to send TLM_STATUS first)."""
+        self.held = []
+
+    def release(self):
+        lines, self.held = self.held, None
+        self.f.writelines(lines)
 
     def frame(self, t_us, name, **signals):
         msg = self.db.get_message_by_name(name)
@@ -70,7 +79,8 @@ class Writer:
         ident = f"{msg.frame_id:03X}"
         sep = "##5" if msg.frame_id in self.fd_ids else "#"
         # wall-clock stamps of a fictional recording: 1.7e9 s + sim time
-        self.f.write(f"({1700000000 + t_us // 1000000}.{t_us % 1000000:06d}) vcan0 {ident}{sep}{data.hex().upper()}\n")
+        line = f"({1700000000 + t_us // 1000000}.{t_us % 1000000:06d}) vcan0 {ident}{sep}{data.hex().upper()}\n"
+        (self.f.write if self.held is None else self.held.append)(line)
 
     def clock(self, t_us):
         self.frame(t_us, "SIM_CLOCK", SimTime_us=t_us)
@@ -231,6 +241,7 @@ def cycle_frames_end(w, rnd, e, k, t0, t1, spikes, alive, exp):
             NumSamples=int(INTERVAL_S * FS), StartTime_us=t0)
     exp["MD_CYCLE"].append({"electrode": e.index, "phase": 1, "cycle": k, "interval_id": k, "utime": t1,
                             "start_time_us": t0, "num_samples": int(INTERVAL_S * FS), "sample_rate_hz": FS})
+    w.hold()  # the controller sends TLM_STATUS before the tracks (firmware/app/md_telemetry.c)
     rows = update_tracks(rnd, e, k, alive)
     best, step = sfsm_step(e, rows)
     tracks = {"electrode": e.index, "cycle": k, "utime": t1, "track_id": [], "spike_count": [], "mean_pc": [],
@@ -259,11 +270,14 @@ def cycle_frames_end(w, rnd, e, k, t0, t1, spikes, alive, exp):
     exp["MD_SPIKES"].append(sp)
     target = e.depth + step
     iqm = round(1.0 - math.exp(-best / 4.0) - 0.05 * rnd.random(), 3) if best > 0 else 0.0
-    dom = rows[0][1]["id"] if rows and rows[0][2] else 0xFFFF
+    dom = rows[0][1]["id"] if rows and rows[0][2] else 0  # 0 = no dominant track
+    held, w.held = w.held, None
     w.frame(t1, "TLM_STATUS", Electrode=e.index, SfsmState=e.state, Cycle=k, Depth_um=round(e.depth, 2),
             TargetDepth_um=round(target, 2), Snr=round(best, 3), Iqm=iqm,
             DominantTrack=dom, NumTracks=len(rows), NumHypotheses=len(hyps["rank"]), Flags=0,
             NumSpikes=len(sp["sample"]))
+    w.held = held
+    w.release()
     exp["MD_STATUS"].append({"electrode": e.index, "cycle": k, "utime": t1, "sfsm_state": e.state,
                              "depth_um": round(e.depth, 2), "target_depth_um": round(target, 2),
                              "snr": round(best, 3), "num_tracks": len(rows), "num_hypotheses": len(hyps["rank"]),
@@ -301,7 +315,7 @@ def spikes_frames(w, rnd, e, k, t0, t1, spikes, label):
         elif rnd.random() < 0.3:
             det.append((s, -1))
     det.sort()
-    for part in range(0, (len(det) + 10) // 11):
+    for part in range(max(1, (len(det) + 10) // 11)):  # one empty part when nothing was detected
         chunk = det[11 * part: 11 * part + 11]
         sig = {"Electrode": e.index, "Count": len(chunk), "Cycle": k, "Part": part}
         for i in range(11):

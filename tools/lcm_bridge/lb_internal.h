@@ -33,6 +33,7 @@ typedef struct {
     lb_wave_t wave[LB_MAX_TRACKS];
     bool hyp_have[LB_MAX_HYPS];
     struct md_can_tlm_hyp_t hyp[LB_MAX_HYPS];
+    uint32_t spike_frames;              ///< TLM_SPIKES parts received (the controller sends >= 1, last)
     uint8_t spike_have[LB_MAX_SPIKES];
     uint32_t spike_sample[LB_MAX_SPIKES];
     int16_t spike_track[LB_MAX_SPIKES];

@@ -221,11 +221,14 @@ static lb_group_t *group_get(lb_t *st, uint8_t electrode, uint16_t cycle)
     return g;
 }
 
-/// Complete when TLM_STATUS came and every record it counts is in, each track
-/// with at least its first wave part (docs/telemetry.md: TLM_STATUS goes last).
+/// Complete when TLM_STATUS came and every record it counts is in: its tracks
+/// (each with at least its first wave part), its hypotheses, and TLM_SPIKES
+/// parts holding at least its spike count (at least one part: the controller
+/// sends one even for no spikes, and sends them last). Any order of arrival
+/// works; an incomplete group goes out at the next cycle or at lb_flush.
 static bool group_complete(const lb_group_t *g)
 {
-    if (!g->have_status) {
+    if (!g->have_status || g->spike_frames == 0u) {
         return false;
     }
     size_t tracks = 0u, hyps = 0u, spikes = 0u;
@@ -423,6 +426,7 @@ static void on_spikes(lb_t *st, const md_frame_t *f)
         g->spike_sample[pos] = s[i];
         g->spike_track[pos] = t[i];
     }
+    g->spike_frames++;
     st->stats.telemetry++;
     group_maybe_publish(st, g);
 }
