@@ -212,6 +212,26 @@ static void rp_json_params(FILE *f, const mhtc_result_t *r)
     (void)fprintf(f, "]");
 }
 
+/* Ranks of the surviving hypotheses that hold track `id`, and their summed probability
+ * (the track's marginal probability of existing). */
+static void rp_json_track_hyps(FILE *f, const mhtc_result_t *r, uint32_t id)
+{
+    double p = 0.0;
+    int first = 1;
+    (void)fprintf(f, "\"hypothesis_ranks\":[");
+    for (size_t h = 0u; h < g_st.n_hyp; ++h) {
+        for (size_t j = 0u; j < g_st.hyp[h].n_tracks; ++j) {
+            if (g_st.pool[g_st.hyp[h].track[j]].id == id) {
+                (void)fprintf(f, "%s%zu", first ? "" : ",", h + 1u);
+                p += r->hyp_prob[h];
+                first = 0;
+                break;
+            }
+        }
+    }
+    (void)fprintf(f, "],\"probability\":%.6g", p);
+}
+
 static void rp_json_tracks(FILE *f, const mhtc_result_t *r, double noise_rms)
 {
     (void)fprintf(f, ",\"tracks\":[");
@@ -232,9 +252,11 @@ static void rp_json_tracks(FILE *f, const mhtc_result_t *r, double noise_rms)
                                         sizeof g_qm_work / sizeof g_qm_work[0], &iso);
         }
         (void)fprintf(f, "%s{\"id\":%u,\"cluster\":%u,\"misses\":%u,\"p_detect\":%.4f,\"rate_hz\":%.3f,\"snr\":%.4f,"
-                         "\"iqm\":%.4f,\"iqm_defined\":%s,\"mean_feat\":[%.6g,%.6g]}",
+                         "\"iqm\":%.4f,\"iqm_defined\":%s,\"mean_feat\":[%.6g,%.6g],",
                       (j > 0u) ? "," : "", t->id, t->cluster, t->misses, t->p_detect, t->rate_hz, snr, iso.id,
                       iso.defined ? "true" : "false", t->mean_feat[0], t->mean_feat[1]);
+        rp_json_track_hyps(f, r, t->id);
+        (void)fprintf(f, "}");
     }
     (void)fprintf(f, "]");
 }
