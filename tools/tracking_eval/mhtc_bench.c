@@ -3,7 +3,7 @@
 /// three synthetic neurons plus outliers, d_w = 35 (1.15 ms at 30 kHz), d = 2,
 /// Laplace evidence. Warm-up intervals fill the hypothesis set; then each
 /// measured step is timed. Prints sizes of the per-electrode state and the
-/// shared workspace. usage: mhtc-bench [STEPS] [--bic]
+/// shared workspace. usage: mhtc-bench [STEPS] [--bic] [--tol T] [--L N]
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -84,13 +84,25 @@ static int b_cmp(const void *a, const void *b)
 int main(int argc, char **argv)
 {
     const size_t steps = (argc > 1) ? (size_t)strtoul(argv[1], NULL, 10) : 10u;
-    const int bic = (argc > 2) && (strcmp(argv[2], "--bic") == 0);
-    if ((steps == 0u) || (steps > 1000u)) {
-        (void)fprintf(stderr, "usage: mhtc-bench [STEPS 1..1000] [--bic]\n");
-        return 2;
-    }
+    int bic = 0;
     mhtc_config_t cfg;
     mhtc_config_default(&cfg, MHTC_TRACKER_MHTC);
+    for (int i = 2; i < argc; ++i) {
+        if (strcmp(argv[i], "--bic") == 0) {
+            bic = 1;
+        } else if ((strcmp(argv[i], "--tol") == 0) && (i + 1 < argc)) {
+            cfg.em.tol = strtod(argv[++i], NULL);
+        } else if ((strcmp(argv[i], "--L") == 0) && (i + 1 < argc)) {
+            cfg.L = (size_t)strtoul(argv[++i], NULL, 10);
+        } else {
+            cfg.L = 0u; /* rejected below */
+        }
+    }
+    if ((steps == 0u) || (steps > 1000u) || (mhtc_config_check(&cfg) != MD_OK)) {
+        (void)fprintf(stderr, "usage: mhtc-bench [STEPS 1..1000] [--bic] [--tol T > 0] [--L 1..%u]\n",
+                      (unsigned)MHTC_L_MAX);
+        return 2;
+    }
     cfg.q_process = 25.0;
     cfg.init_var = 25.0;
     cfg.evidence = bic ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
@@ -116,9 +128,9 @@ int main(int argc, char **argv)
         }
     }
     qsort(g_ms, steps, sizeof g_ms[0], b_cmp);
-    printf("steps %zu, evidence %s: median %.2f ms, min %.2f ms, max %.2f ms; model hypotheses per step %.1f; "
+    printf("L %zu, EM tol %g, steps %zu, evidence %s: median %.2f ms, min %.2f ms, max %.2f ms; model hypotheses per step %.1f; "
            "hypotheses %zu, tracks (leading) %zu\n",
-           steps, bic ? "BIC" : "Laplace", g_ms[steps / 2u], g_ms[0], g_ms[steps - 1u], (double)models / (double)steps,
+           cfg.L, cfg.em.tol, steps, bic ? "BIC" : "Laplace", g_ms[steps / 2u], g_ms[0], g_ms[steps - 1u], (double)models / (double)steps,
            g_out.n_hyp, g_out.n_tracks);
     printf("sizeof: mhtc_state_t %zu B (per electrode), mhtc_track_t %zu B x %u, kf_state_t %zu B, "
            "mhtc_hyp_t %zu B x %u, mhtc_workspace_t %zu B (shared)\n",
