@@ -7,7 +7,7 @@
 ///
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
-///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--quiet]
+///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--quiet]
 /// Writes OUT/labels.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -39,6 +39,7 @@ typedef struct {
     size_t L;
     size_t g_max;
     cluster_evidence_t evidence;
+    double em_tol;
     int quiet;
 } rp_options_t;
 
@@ -79,7 +80,7 @@ static int rp_usage(const char *msg)
     (void)fprintf(stderr,
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
-                  "[--L N] [--g-max G] [--evidence laplace|bic] [--quiet]\n",
+                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -105,6 +106,7 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
     o->L = MHTC_L_MAX;
     o->g_max = MHTC_G_MAX;
     o->evidence = CLUSTER_EVIDENCE_LAPLACE;
+    o->em_tol = 0.0; /* 0: the clustering default */
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
@@ -139,6 +141,8 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
         } else if (strcmp(a, "--g-max") == 0) {
             bad = rp_num(v, 1.0, (double)MHTC_G_MAX, &x);
             o->g_max = (size_t)x;
+        } else if (strcmp(a, "--em-tol") == 0) {
+            bad = rp_num(v, 1e-15, 1e-2, &o->em_tol);
         } else if (strcmp(a, "--evidence") == 0) {
             bad = (strcmp(v, "laplace") != 0) && (strcmp(v, "bic") != 0);
             o->evidence = (strcmp(v, "bic") == 0) ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
@@ -453,6 +457,9 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
     cfg.init_var = o->init_uv * o->init_uv;
     if (o->tracker != MHTC_TRACKER_ML_NN) {
         cfg.evidence = o->evidence;
+    }
+    if (o->em_tol > 0.0) {
+        cfg.em.tol = o->em_tol;
     }
     if (rp_mkdirs(o->out) != 0) {
         (void)fprintf(stderr, "mhtc-replay: %s: cannot create: %s\n", o->out, strerror(errno));

@@ -28,6 +28,7 @@ import subprocess
 import sys
 
 Q_UV = 10.0  # process noise of the replay (--q-uv), set by --q-uv here
+EXTRA = []   # further mhtc-replay options (--replay-args)
 MATCH_MS = 0.5
 MIN_SPIKES = 10
 DEFAULT_SCENARIOS = ["intermittent_neuron", "appearing_neuron", "drifting_pair", "crossing_clusters", "drift_away"]
@@ -81,7 +82,7 @@ def run_one(build, work, scenario, seed, tracker):
     rec_dir = os.path.join(work, f"{scenario}-s{seed}")
     out_dir = os.path.join(work, "out", f"{scenario}-s{seed}-{tracker}")
     cmd = [os.path.join(build, "bin", "mhtc-replay"), "--recording", os.path.join(rec_dir, "recording.json"),
-           "--out", out_dir, "--tracker", tracker, "--quiet", "--q-uv", str(Q_UV)]
+           "--out", out_dir, "--tracker", tracker, "--quiet", "--q-uv", str(Q_UV)] + EXTRA
     subprocess.run(cmd, check=True)
     with open(os.path.join(rec_dir, "recording.json")) as f:
         fs = json.load(f)["sampling_frequency"]
@@ -103,9 +104,11 @@ def main():
     ap.add_argument("--work", default="/tmp/tracking-eval")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--q-uv", type=float, default=10.0)
+    ap.add_argument("--replay-args", default="", help="extra mhtc-replay options, space separated")
     a = ap.parse_args()
-    global Q_UV
+    global Q_UV, EXTRA
     Q_UV = a.q_uv
+    EXTRA = a.replay_args.split()
     seeds = [int(s) for s in a.seeds.split(",")]
     scenarios = a.scenarios.split(",")
     trackers = a.trackers.split(",")
