@@ -31,8 +31,8 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->beta = 0.001;
     cfg->k_miss = 5u;
     cfg->nn_k_miss = 1u;
-    cfg->q_process = 1.0;
-    cfg->init_var = 1.0;
+    cfg->q_process = MHTC_Q_DEFAULT_UV2;
+    cfg->init_var = MHTC_Q_DEFAULT_UV2;
     cfg->evidence = (tracker == MHTC_TRACKER_ML_NN) ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
     em_options_default(&cfg->em);
     cfg->shape_prior_width = EM_SHAPE_PRIOR_WIDTH;

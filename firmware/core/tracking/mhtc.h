@@ -58,6 +58,9 @@
 #define MHTC_HIST_MAX 8u                     ///< intervals of assignment/rank history (≥ K_miss)
 #define MHTC_MODELS_MAX (MHTC_L_MAX * MHTC_G_MAX) ///< model hypotheses of one interval
 #define MHTC_ID_FALSE (-1)                   ///< "false cluster" in assignment lists and labels
+/// Q = q·I default for waveforms in µV: (10 µV)² per sample and interval, calibrated on
+/// held-out simulator seeds (docs/tracking-eval.md). Also the default new-track variance.
+#define MHTC_Q_DEFAULT_UV2 100.0
 
 _Static_assert(MHTC_POOL >= MHTC_TARGETS_MAX, "one hypothesis must fit in the pool");
 _Static_assert(MHTC_POOL <= 255u, "pool indices are uint8_t");
@@ -237,8 +240,8 @@ typedef struct {
     size_t models_fitted;                      ///< model hypotheses clustered this interval
 } mhtc_result_t;
 
-/// Table 4.1 defaults for `tracker`; q_process and init_var default to 1.0
-/// (waveform units²) and should be calibrated to the signal's scale.
+/// Table 4.1 defaults for `tracker`; q_process and init_var default to
+/// MHTC_Q_DEFAULT_UV2 (waveforms in µV; rescale for other units).
 void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker);
 
 /// MD_OK if every field is in range (see mhtc_config_t), else MD_E_ARG.
