@@ -6,7 +6,9 @@
 ///  - status is one of the documented codes; non-finite input is never MD_OK;
 ///  - on MD_OK: eigenvalues finite, descending, not below -1e-9·trace and not
 ///    above the trace; B's rows orthonormal (1e-6) and finite; the sign
-///    convention of pca.h holds; the mean is finite;
+///    convention of pca.h holds; the mean is finite; B is the leading
+///    eigenbasis (variance of the projections on row r = eigval[r], no
+///    coordinate axis with more variance than eigval[0], 1e-6·trace);
 ///  - pca_project_all of the same waveforms is MD_OK with finite features or
 ///    MD_E_NUMERIC (overflow), never non-finite features with MD_OK;
 ///  - int16 path (control bit 6): pca_fit_i16 with any gain returns the same
@@ -61,6 +63,41 @@ static void make_wave(fz_t *in, size_t i, size_t stride, size_t d_w)
         for (size_t j = 0u; j < d_w; ++j) {
             w[j] = fz_double_mode(in, kind >> 4u);
         }
+    }
+}
+
+/* B must really be the leading eigenbasis: the sample variance (1/(n-1)) of
+ * the projections on row r equals eigval[r], and no coordinate axis carries
+ * more variance than eigval[0]. Tolerances relative to the trace. */
+static void check_variances(const pca_basis_t *b, size_t n, size_t stride)
+{
+    const double tol = 1e-6 * b->total_var;
+    for (size_t r = 0u; r < b->d; ++r) {
+        double mean = 0.0;
+        for (size_t i = 0u; i < n; ++i) {
+            double y = 0.0;
+            for (size_t j = 0u; j < b->d_w; ++j) {
+                y += b->b[r * b->d_w + j] * g_wave[i * stride + j];
+            }
+            g_feat[i] = y;
+            mean += y / (double)n;
+        }
+        double var = 0.0;
+        for (size_t i = 0u; i < n; ++i) {
+            var += (g_feat[i] - mean) * (g_feat[i] - mean) / (double)(n - 1u);
+        }
+        FUZZ_CHECK(fabs(var - b->eigval[r]) <= tol);
+    }
+    for (size_t j = 0u; j < b->d_w; ++j) {
+        double mean = 0.0;
+        for (size_t i = 0u; i < n; ++i) {
+            mean += g_wave[i * stride + j] / (double)n;
+        }
+        double var = 0.0;
+        for (size_t i = 0u; i < n; ++i) {
+            var += (g_wave[i * stride + j] - mean) * (g_wave[i * stride + j] - mean) / (double)(n - 1u);
+        }
+        FUZZ_CHECK(var <= b->eigval[0] + tol);
     }
 }
 
@@ -165,6 +202,7 @@ static void run_i16(size_t n, size_t stride, size_t d_w, size_t d, double gain, 
         return;
     }
     check_basis(&g_basis16, d, d_w);
+    check_variances(&g_basis16, n, stride);
     FUZZ_CHECK(close_rel(g_basis16.total_var, g_basis.total_var));
     for (size_t k = 0u; k < d; ++k) {
         FUZZ_CHECK(fabs(g_basis16.eigval[k] - g_basis.eigval[k]) <= 1e-9 * g_basis.total_var + 1e-300);
@@ -210,6 +248,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     FUZZ_CHECK(finite);
     FUZZ_CHECK(stride == row); /* a stride shorter than the waveform must have been refused */
     check_basis(&g_basis, d, d_w);
+    check_variances(&g_basis, n, stride);
     check_projection(&g_basis, n, stride, false, 1.0);
     return 0;
 }
