@@ -115,7 +115,11 @@ for t in "${targets[@]}"; do
     cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}')
     ft=$(grep -oE 'ft: [0-9]+' "$log" | tail -1 | awk '{print $2}')
     result="ok"
-    if [[ $rc -ne 0 ]]; then result="FAILED rc=$rc (log $log, reproducer in $artifacts/)"; status=1; fi
+    if [[ $rc -eq 72 ]]; then
+        result="interrupted (SIGINT; figures up to that point)"  # libFuzzer's interrupt exit code
+    elif [[ $rc -ne 0 ]]; then
+        result="FAILED rc=$rc (log $log, reproducer in $artifacts/)"; status=1
+    fi
     line="$(date -u +%FT%TZ) $t execs=${execs:-0} wall_s=$wall cov=${cov:-?} ft=${ft:-?} corpus=$(ls "$work" | wc -l) $result"
     echo "$line"
     echo "$line" >>"$build_dir/fuzz-summary.txt"

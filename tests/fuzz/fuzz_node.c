@@ -8,6 +8,8 @@
 ///    ACT_CMD step leaves the node, the node is never operational, and at most
 ///    one EMCY e-stop goes out per latch; every latch halts every electrode
 ///    (sent, or pending for retry when the port refused);
+///  - leaving operational, or a monitored node falling silent, halts every
+///    electrode (sent, or pending for retry); a lost node inhibits motion;
 ///  - ACT_CMD Seq of each electrode goes up by one per frame sent, across resets;
 ///  - counters never decrease;
 ///  - every parameter is finite, in [min, max], integral when flagged, and
@@ -19,6 +21,7 @@
 #include <string.h>
 
 #include "fuzz_input.h"
+#include "fuzz_protocol_table.h"
 #include "md_can.h"
 #include "md_node.h"
 
@@ -30,36 +33,11 @@ typedef struct {
     bool fd;
 } known_id_t;
 
-static const known_id_t KNOWN[] = {
-    {MD_CAN_ESTOP_FRAME_ID, MD_CAN_ESTOP_LENGTH, false},
-    {MD_CAN_NMT_FRAME_ID, MD_CAN_NMT_LENGTH, false},
-    {MD_CAN_SIM_CLOCK_FRAME_ID, MD_CAN_SIM_CLOCK_LENGTH, false},
-    {MD_CAN_SIM_STEP_FRAME_ID, MD_CAN_SIM_STEP_LENGTH, false},
-    {MD_CAN_EMCY_CTRL_FRAME_ID, MD_CAN_EMCY_CTRL_LENGTH, false},
-    {MD_CAN_EMCY_ACT_FRAME_ID, MD_CAN_EMCY_ACT_LENGTH, false},
-    {MD_CAN_EMCY_HALL_FRAME_ID, MD_CAN_EMCY_HALL_LENGTH, false},
-    {MD_CAN_EMCY_FE_FRAME_ID, MD_CAN_EMCY_FE_LENGTH, false},
-    {MD_CAN_EMCY_OPER_FRAME_ID, MD_CAN_EMCY_OPER_LENGTH, false},
-    {MD_CAN_ACT_CMD_FRAME_ID, MD_CAN_ACT_CMD_LENGTH, false},
-    {MD_CAN_REC_REQ_FRAME_ID, MD_CAN_REC_REQ_LENGTH, false},
-    {MD_CAN_ACT_STATUS_FRAME_ID, MD_CAN_ACT_STATUS_LENGTH, false},
-    {MD_CAN_HALL_READING_FRAME_ID, MD_CAN_HALL_READING_LENGTH, false},
-    {MD_CAN_HALL_CALIB_FRAME_ID, MD_CAN_HALL_CALIB_LENGTH, false},
-    {MD_CAN_REC_DATA_FRAME_ID, MD_CAN_REC_DATA_LENGTH, true},
-    {MD_CAN_REC_END_FRAME_ID, MD_CAN_REC_END_LENGTH, false},
-    {MD_CAN_FE_INFO_FRAME_ID, MD_CAN_FE_INFO_LENGTH, true},
-    {MD_CAN_TLM_STATUS_FRAME_ID, MD_CAN_TLM_STATUS_LENGTH, true},
-    {MD_CAN_TLM_TRACK_FRAME_ID, MD_CAN_TLM_TRACK_LENGTH, true},
-    {MD_CAN_TLM_WAVE_FRAME_ID, MD_CAN_TLM_WAVE_LENGTH, true},
-    {MD_CAN_TLM_HYP_FRAME_ID, MD_CAN_TLM_HYP_LENGTH, true},
-    {MD_CAN_PARAM_RESP_CTRL_FRAME_ID, MD_CAN_PARAM_RESP_CTRL_LENGTH, false},
-    {MD_CAN_PARAM_REQ_CTRL_FRAME_ID, MD_CAN_PARAM_REQ_CTRL_LENGTH, false},
-    {MD_CAN_HEARTBEAT_CTRL_FRAME_ID, MD_CAN_HEARTBEAT_CTRL_LENGTH, false},
-    {MD_CAN_HEARTBEAT_ACT_FRAME_ID, MD_CAN_HEARTBEAT_ACT_LENGTH, false},
-    {MD_CAN_HEARTBEAT_HALL_FRAME_ID, MD_CAN_HEARTBEAT_HALL_LENGTH, false},
-    {MD_CAN_HEARTBEAT_FE_FRAME_ID, MD_CAN_HEARTBEAT_FE_LENGTH, false},
-    {MD_CAN_HEARTBEAT_OPER_FRAME_ID, MD_CAN_HEARTBEAT_OPER_LENGTH, false},
-};
+/* Every id of the DBC (generated list, so new messages are fuzzed too); the
+ * DBC's FD frames are exactly those longer than 8 bytes. */
+#define FRAME(id, len) {(uint16_t)(id), (uint8_t)(len), (len) > 8u},
+static const known_id_t KNOWN[] = {FUZZ_FRAMES};
+#undef FRAME
 #define KNOWN_COUNT (sizeof(KNOWN) / sizeof(KNOWN[0]))
 
 /* Ids the controller itself transmits, with their lengths. */
@@ -88,6 +66,17 @@ typedef struct {
 } shadow_t;
 
 static shadow_t g_shadow;
+
+#define ALL_ELECTRODES ((uint8_t)((1u << MD_ELECTRODES) - 1u))
+
+/* Open finding (docs/fuzzing.md, reproducers in crashes/fuzz_node/): an NMT
+ * start that arrives after init/reset-node but before the first poll makes
+ * the node operational; the poll's boot-up then sets pre-operational without
+ * halting (md_node.c do_boot). Tolerated while 1 so the runs go on; set to 0
+ * once do_boot halts (or NMT is refused before boot-up). */
+#ifndef FUZZ_NODE_BOOT_BUG_OPEN
+#define FUZZ_NODE_BOOT_BUG_OPEN 1
+#endif
 
 static void check_sent_frame(const md_frame_t *f)
 {
@@ -182,6 +171,11 @@ static void check_counters(const md_node_counters_t *before, const md_node_count
 static void check_node(const md_node_t *node)
 {
     FUZZ_CHECK(node->estop_latched == g_shadow.estop);
+    for (size_t i = 0u; i < MD_NODE_MONITORED; ++i) {
+        if (node->monitor[i].lost) {
+            FUZZ_CHECK(!md_node_motion_allowed(node)); /* a silent node inhibits motion */
+        }
+    }
     if (node->estop_latched) {
         FUZZ_CHECK(node->state != MD_NODE_STATE_OPERATIONAL);
         FUZZ_CHECK(!md_node_motion_allowed(node));
@@ -288,7 +282,6 @@ static void op_frame(md_node_t *node, fz_t *in, uint64_t now_us)
     md_frame_t f;
     make_frame(in, &f);
     const md_frame_t copy = f;
-    g_shadow.halts_sent_mask = 0u;
     const bool estop = is_estop_frame(&f);
     if (estop && !g_shadow.estop) {
         g_shadow.estop_emcy_in_latch = 0u;
@@ -301,8 +294,7 @@ static void op_frame(md_node_t *node, fz_t *in, uint64_t now_us)
     FUZZ_CHECK(memcmp(&f, &copy, sizeof f) == 0); /* input is const in spirit: never modified */
     if (estop) {
         /* Every electrode halted now, or queued for poll to retry. */
-        const uint8_t all = (uint8_t)((1u << MD_ELECTRODES) - 1u);
-        FUZZ_CHECK((uint8_t)(g_shadow.halts_sent_mask | node->halt_pending) == all);
+        FUZZ_CHECK((uint8_t)(g_shadow.halts_sent_mask | node->halt_pending) == ALL_ELECTRODES);
     }
     if (is_accepted_clear(&f, st)) {
         g_shadow.estop = false;
@@ -335,6 +327,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     check_node(&node);
     for (size_t ops = 0u; ops < 256u && fz_left(&in) > 0u; ++ops) {
         const md_node_counters_t before = node.counters;
+        const bool was_operational = node.state == MD_NODE_STATE_OPERATIONAL;
+        const uint32_t lost_before = node.counters.heartbeat_lost;
+        const bool boot_before = node.boot_pending;
+        g_shadow.halts_sent_mask = 0u;
         const uint8_t op = fz_u8(&in);
         switch (op & 7u) {
         case 0u:
@@ -367,6 +363,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         }
         check_counters(&before, &node.counters);
+        const bool known_boot_bug = FUZZ_NODE_BOOT_BUG_OPEN != 0 && boot_before && !node.boot_pending;
+        if ((was_operational && node.state != MD_NODE_STATE_OPERATIONAL && !known_boot_bug) ||
+            node.counters.heartbeat_lost != lost_before) {
+            /* Leaving operational or losing a node halts every electrode (sent or queued). */
+            FUZZ_CHECK((uint8_t)(g_shadow.halts_sent_mask | node.halt_pending) == ALL_ELECTRODES);
+        }
         check_node(&node);
     }
     return 0;
