@@ -109,7 +109,6 @@ typedef struct {
     } u;
     sx_windows_t win;                                     ///< aligned spike windows (int16)
     sx_snippets_t noise;                                  ///< spike-free noise snippets (int16)
-    double wave[MD_MAX_SPIKES * MD_WAVE_LEN_MAX];         ///< windows in µV (mhtc_input_t needs doubles)
     double y[MD_MAX_SPIKES * MD_CYCLE_D];                 ///< spike features
     double noise_y[MD_MAX_NOISE_SNIPPETS * MD_CYCLE_D];   ///< noise features (isolation distance)
     double qm_work[(MD_MAX_SPIKES + MD_MAX_NOISE_SNIPPETS) * MD_CYCLE_D];

@@ -61,11 +61,6 @@ static md_status_t chain(md_workspace_t *ws)
     if (st == MD_OK) {
         st = qm_noise_rms_i16(&z->wave[0][0], z->n, MD_WAVE_LEN_MAX, z->d_w, z->gain, &ws->noise_rms_uv);
     }
-    for (size_t i = 0u; st == MD_OK && i < ws->n_spikes; ++i) { /* the tracker takes waveforms as doubles */
-        for (size_t q = 0u; q < w->d_w; ++q) {
-            ws->wave[i * w->d_w + q] = w->gain * (double)w->wave[i][q];
-        }
-    }
     return st;
 }
 
@@ -127,7 +122,9 @@ md_status_t md_process_interval(md_workspace_t *ws, md_electrode_t *el, double d
     if (st != MD_OK) {
         return st;
     }
-    const mhtc_input_t in = {ws->y, ws->n_spikes, ws->wave, ws->win.d_w, &ws->basis, ws->xi, duration_s};
+    /* The tracker reads the int16 windows through the gain: no double copy of them. */
+    const mhtc_input_t in = {ws->y, ws->n_spikes, NULL, MD_WAVE_LEN_MAX, &ws->basis, ws->xi, duration_s,
+                             &ws->win.wave[0][0], ws->win.gain};
     st = mhtc_step(&el->mhtc, &in, &ws->u.mhtc, &ws->res);
     if (st != MD_OK) {
         return st;

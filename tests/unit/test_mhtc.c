@@ -81,7 +81,7 @@ static md_status_t run_interval(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(&g_wave[0][0], g_n, DW, DW, D, &g_pw, &g_basis));
     TEST_ASSERT_EQUAL_INT(MD_OK, pca_project_all(&g_basis, &g_wave[0][0], g_n, DW, g_y));
     TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_feature_cov(&g_basis, &g_noise[0][0], N_NOISE, DW, g_xi));
-    const mhtc_input_t in = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0};
+    const mhtc_input_t in = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0};
     const md_status_t rc = mhtc_step(&g_st, &in, &g_ws, &g_out);
     g_n = 0u;
     return rc;
@@ -274,7 +274,7 @@ static void test_empty_interval_and_bad_input(void)
     TEST_ASSERT_EQUAL_INT32(id_a, id_of(1));
     /* bad input is rejected and counted, state untouched */
     const uint32_t steps = g_st.stats.steps;
-    mhtc_input_t in = {g_y, 10u, &g_wave[0][0], DW, &g_basis, g_xi, 0.0};
+    mhtc_input_t in = {g_y, 10u, &g_wave[0][0], DW, &g_basis, g_xi, 0.0, NULL, 0.0};
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_step(&g_st, &in, &g_ws, &g_out));
     in.duration_s = 10.0;
     g_y[0] = NAN;
@@ -311,6 +311,57 @@ static void test_baselines_run_and_nn_loses_silent_neuron(void)
     }
 }
 
+/* The controller hands the tracker int16 windows plus a gain instead of a
+ * double copy; both forms of the same waveforms must give the same tracks. */
+static mhtc_state_t g_st_i16;
+static mhtc_result_t g_out_i16;
+static int16_t g_wave_i16[N_MAX][DW];
+
+static void test_int16_input_equals_double_input(void)
+{
+    const double gain = 0.125; /* waveform units per ADC count: exact in binary */
+    mhtc_config_t cfg;
+    mhtc_config_default(&cfg, MHTC_TRACKER_MHTC);
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_init(&g_st, &cfg));
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_init(&g_st_i16, &cfg));
+    for (unsigned k = 0u; k < 3u; ++k) {
+        g_n = 0u;
+        add_spikes(1, 60u);
+        add_spikes(2, 50u);
+        for (size_t i = 0u; i < g_n; ++i) { /* quantise, then use the exact quantised values in both forms */
+            for (size_t q = 0u; q < DW; ++q) {
+                g_wave_i16[i][q] = (int16_t)lround(g_wave[i][q] / gain);
+                g_wave[i][q] = gain * (double)g_wave_i16[i][q];
+            }
+        }
+        TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(&g_wave[0][0], g_n, DW, DW, D, &g_pw, &g_basis));
+        TEST_ASSERT_EQUAL_INT(MD_OK, pca_project_all(&g_basis, &g_wave[0][0], g_n, DW, g_y));
+        for (size_t j = 0u; j < N_NOISE; ++j) {
+            for (size_t q = 0u; q < DW; ++q) {
+                g_noise[j][q] = NOISE_SD * md_rng_gauss(&g_rng);
+            }
+        }
+        TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_feature_cov(&g_basis, &g_noise[0][0], N_NOISE, DW, g_xi));
+        const mhtc_input_t in_d = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0};
+        const mhtc_input_t in_i = {g_y, g_n, NULL, DW, &g_basis, g_xi, 10.0, &g_wave_i16[0][0], gain};
+        TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_step(&g_st, &in_d, &g_ws, &g_out));
+        TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_step(&g_st_i16, &in_i, &g_ws, &g_out_i16));
+        TEST_ASSERT_EQUAL_UINT(g_out.n_tracks, g_out_i16.n_tracks);
+        TEST_ASSERT_EQUAL_MEMORY(g_out.labels, g_out_i16.labels, g_n);
+        for (size_t t = 0u; t < g_out.n_tracks; ++t) {
+            TEST_ASSERT_EQUAL_UINT(g_out.track[t].id, g_out_i16.track[t].id);
+            for (size_t c = 0u; c < D; ++c) {
+                TEST_ASSERT_DOUBLE_WITHIN(1e-12, g_out.track[t].mean_feat[c], g_out_i16.track[t].mean_feat[c]);
+            }
+        }
+    }
+    TEST_ASSERT_GREATER_OR_EQUAL_UINT(2u, g_out.n_tracks);
+    /* An int16 input without a valid gain is refused. */
+    const mhtc_input_t bad = {g_y, g_n, NULL, DW, &g_basis, g_xi, 10.0, &g_wave_i16[0][0], 0.0};
+    TEST_ASSERT_TRUE(mhtc_step(&g_st_i16, &bad, &g_ws, &g_out_i16) < 0);
+    g_n = 0u;
+}
+
 static void test_tracker_names(void)
 {
     mhtc_tracker_t t;
@@ -329,6 +380,7 @@ int main(void)
     RUN_TEST(test_ids_monotonic_and_pool_shared);
     RUN_TEST(test_empty_interval_and_bad_input);
     RUN_TEST(test_baselines_run_and_nn_loses_silent_neuron);
+    RUN_TEST(test_int16_input_equals_double_input);
     RUN_TEST(test_tracker_names);
     return UNITY_END();
 }

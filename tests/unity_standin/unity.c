@@ -274,6 +274,22 @@ void UnityAssertDoubleWithin(double delta, double expected, double actual, const
     }
 }
 
+void UnityAssertIntWithin(int64_t delta, int64_t expected, int64_t actual, const char *msg, int line)
+{
+    const int64_t diff = (actual > expected) ? (actual - expected) : (expected - actual);
+    if (diff > delta) {
+        report_location(line);
+        out_str("Expected ");
+        out_int(expected);
+        out_str(" +/- ");
+        out_int(delta);
+        out_str(" Was ");
+        out_int(actual);
+        unity_standin_putchar('\n');
+        fail_now(line, "integers not within delta", msg);
+    }
+}
+
 void UnityAssertEqualString(const char *expected, const char *actual, const char *msg, int line)
 {
     if (expected == NULL || actual == NULL) {

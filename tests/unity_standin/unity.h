@@ -116,6 +116,13 @@ void unity_standin_putchar(int c);
 #define TEST_ASSERT_FLOAT_WITHIN(d, e, a) TEST_ASSERT_DOUBLE_WITHIN(d, e, a)
 #define TEST_ASSERT_FLOAT_WITHIN_MESSAGE(d, e, a, msg) TEST_ASSERT_DOUBLE_WITHIN_MESSAGE(d, e, a, msg)
 
+/* Integer closeness: |actual - expected| <= delta, compared in 64 bits. */
+void UnityAssertIntWithin(int64_t delta, int64_t expected, int64_t actual, const char *msg, int line);
+#define TEST_ASSERT_INT_WITHIN(d, e, a) UnityAssertIntWithin((int64_t)(d), (int64_t)(e), (int64_t)(a), NULL, __LINE__)
+#define TEST_ASSERT_INT32_WITHIN(d, e, a) TEST_ASSERT_INT_WITHIN(d, e, a)
+#define TEST_ASSERT_UINT_WITHIN(d, e, a) TEST_ASSERT_INT_WITHIN(d, e, a)
+#define TEST_ASSERT_UINT32_WITHIN(d, e, a) TEST_ASSERT_INT_WITHIN(d, e, a)
+
 #define TEST_ASSERT_EQUAL_STRING(e, a) UnityAssertEqualString((e), (a), NULL, __LINE__)
 #define TEST_ASSERT_EQUAL_STRING_MESSAGE(e, a, msg) UnityAssertEqualString((e), (a), (msg), __LINE__)
 #define TEST_ASSERT_EQUAL_MEMORY(e, a, len) UnityAssertEqualMemory((e), (a), (len), NULL, __LINE__)

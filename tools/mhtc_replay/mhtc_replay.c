@@ -482,7 +482,8 @@ static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32
                                   "skipped\n", k);
             continue;
         }
-        const mhtc_input_t in = {g_y, g_spk.n, &g_spk.wave[0][0], MD_WAVE_LEN_MAX, &g_basis, g_xi, iv->duration_s};
+        const mhtc_input_t in = {g_y, g_spk.n, &g_spk.wave[0][0], MD_WAVE_LEN_MAX, &g_basis, g_xi, iv->duration_s,
+                                 NULL, 0.0};
         const double t0 = rp_now_ms();
         const md_status_t st = mhtc_step(&g_st, &in, &g_ws, &g_res);
         const double ms = rp_now_ms() - t0;

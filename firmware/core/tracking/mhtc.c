@@ -110,7 +110,8 @@ const mhtc_hyp_t *mhtc_parent(const mhtc_state_t *st, size_t p)
 static bool mhtc_input_ok(const mhtc_state_t *st, const mhtc_input_t *in, const mhtc_workspace_t *ws)
 {
     if ((in == NULL) || (ws == NULL) || (in->basis == NULL) || (in->noise_cov == NULL) ||
-        (in->n > EM_N_MAX) || ((in->n > 0u) && ((in->y == NULL) || (in->wave == NULL))) ||
+        (in->n > EM_N_MAX) || ((in->n > 0u) && ((in->y == NULL) || ((in->wave == NULL) && (in->wave_i16 == NULL)))) ||
+        ((in->wave == NULL) && (in->n > 0u) && !(in->wave_gain > 0.0 && isfinite(in->wave_gain))) ||
         !(in->duration_s > 0.0) || !isfinite(in->duration_s)) {
         return false;
     }
@@ -123,7 +124,7 @@ static bool mhtc_input_ok(const mhtc_state_t *st, const mhtc_input_t *in, const 
         ((in->n > 0u) && !linalg_all_finite(in->y, in->n * b->d))) {
         return false;
     }
-    for (size_t i = 0u; i < in->n; ++i) {
+    for (size_t i = 0u; (in->wave != NULL) && (i < in->n); ++i) { /* int16 input is finite by type */
         if (!linalg_all_finite(&in->wave[i * in->stride], b->d_w)) {
             return false;
         }

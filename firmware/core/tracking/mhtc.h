@@ -159,12 +159,22 @@ typedef struct {
 typedef struct {
     const double *y;             ///< n × d features (pca_project_all)
     size_t n;                    ///< spikes, ≤ EM_N_MAX
-    const double *wave;          ///< n waveforms, row i at wave[i*stride], d_w samples
+    const double *wave;          ///< n waveforms, row i at wave[i*stride], d_w samples; or NULL and:
     size_t stride;
     const pca_basis_t *basis;    ///< B^k = H^k, d × d_w
     const double *noise_cov;     ///< Ξ, d × d (qm_noise_feature_cov)
     double duration_s;           ///< interval length for firing rates (> 0)
+    const int16_t *wave_i16;     ///< the same waveforms in ADC units (used when wave is NULL): saves
+                                 ///< the MCU a double copy of every window
+    double wave_gain;            ///< waveform units (µV) per ADC unit of wave_i16 (> 0)
 } mhtc_input_t;
+
+/// Sample q of waveform i of an interval, in waveform units, whichever form it came in.
+static inline double mhtc_input_wave(const mhtc_input_t *in, size_t i, size_t q)
+{
+    return (in->wave != NULL) ? in->wave[i * in->stride + q]
+                              : in->wave_gain * (double)in->wave_i16[i * in->stride + q];
+}
 
 /// A model hypothesis fitted in this interval (workspace, valid until the next step).
 typedef struct {

@@ -186,7 +186,7 @@ static void mhtc_member_mean(const mhtc_input_t *in, const mhtc_model_t *m, size
     for (size_t i = 0u; i < in->n; ++i) {
         if (m->labels[i] == g) {
             for (size_t q = 0u; q < dw; ++q) {
-                ws->wsum[q] += in->wave[i * in->stride + q];
+                ws->wsum[q] += mhtc_input_wave(in, i, q);
             }
             ++cnt;
         }
