@@ -165,7 +165,7 @@ def check_errors(bridge, work):
     check(rc == 0, f"malformed input is not fatal: exit {rc} {err}")
     check(st.get("malformed") == 1 and st.get("ignored") == 1 and st.get("bad log lines") == 1,
           f"malformed input counted: {err.strip()}")
-    check("truth records 0 (errors 2)" in err, f"bad truth lines counted: {err.strip()}")
+    check("truth records 0 (errors 2, ignored 0)" in err, f"bad truth lines counted: {err.strip()}")
 
 
 def main():

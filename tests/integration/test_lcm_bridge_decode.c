@@ -405,8 +405,10 @@ static void test_truth_lines(void)
     TEST_ASSERT_EQUAL_INT(1, count(LB_CH_TRUTH_SPIKES)); /* another electrode ends the batch */
     TEST_ASSERT_EQUAL_INT(0, lb_feed_truth_line(g_st, "  \n"));
     TEST_ASSERT_EQUAL_INT(-1, lb_feed_truth_line(g_st, "{\"type\":\"state\""));
-    TEST_ASSERT_EQUAL_INT(-1, lb_feed_truth_line(g_st, "{\"type\":\"bogus\"}"));
+    TEST_ASSERT_EQUAL_INT(-1, lb_feed_truth_line(g_st, "{\"no_type\":1}"));
+    TEST_ASSERT_EQUAL_INT(0, lb_feed_truth_line(g_st, "{\"type\":\"interval\",\"electrode\":0}"));
     TEST_ASSERT_EQUAL_UINT64(2, lb_stats(g_st)->truth_errors);
+    TEST_ASSERT_EQUAL_UINT64(1, lb_stats(g_st)->truth_ignored);
     const char *state = "{\"type\":\"state\",\"t_s\":20.5,\"label\":\"interval 2\",\"electrode\":1,\"tip_um\":1019.96,"
                         "\"neurons\":[{\"neuron\":4,\"depth_um\":1205.78,\"alive\":false,\"distance_um\":187.49,"
                         "\"snr\":1.92,\"snr_peak_depth_um\":1205.5,\"snr_peak\":37.72}]}";

@@ -261,7 +261,8 @@ static int dispatch(lb_t *st, const cJSON *root)
     if (strcmp(type, "state") == 0) {
         return on_state(st, root);
     }
-    return -1;
+    st->stats.truth_ignored++; /* a record type without an LCM type (e.g. "interval") */
+    return 0;
 }
 
 int lb_feed_truth_line(lb_t *st, const char *line)
@@ -270,7 +271,8 @@ int lb_feed_truth_line(lb_t *st, const char *line)
         return 0;
     }
     cJSON *root = cJSON_Parse(line);
-    const int rc = cJSON_IsObject(root) ? dispatch(st, root) : -1;
+    const bool typed = cJSON_IsObject(root) && cJSON_IsString(cJSON_GetObjectItemCaseSensitive(root, "type"));
+    const int rc = typed ? dispatch(st, root) : -1;
     cJSON_Delete(root);
     if (rc != 0) {
         st->stats.truth_errors++;

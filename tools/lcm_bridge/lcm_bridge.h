@@ -66,6 +66,7 @@ typedef struct {
     uint64_t sink_errors;     ///< sink returned < 0, or encoding failed
     uint64_t truth_records;   ///< truth lines consumed
     uint64_t truth_errors;    ///< truth lines that failed to parse or lacked fields
+    uint64_t truth_ignored;   ///< truth records of a type the bridge does not translate
 } lb_stats_t;
 
 typedef struct lb lb_t;
@@ -99,7 +100,8 @@ int64_t lb_truth_time_us(const lb_t *st, const char *line);
 /// records are collected and published as one truth_session_t at the first
 /// other record (or at lb_flush); spikes are batched (LB_TRUTH_SPIKE_BATCH, one
 /// electrode, uninterrupted run); state and death go out at once. Blank lines
-/// are ignored. Returns 0, or -1 on a line that failed to parse (counted).
+/// are skipped; records of other types are counted in truth_ignored. Returns
+/// 0, or -1 on a line that failed to parse or lacks a required field (counted).
 int lb_feed_truth_line(lb_t *st, const char *line);
 
 /// Counters so far.

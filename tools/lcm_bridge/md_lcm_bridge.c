@@ -341,9 +341,9 @@ int main(int argc, char **argv)
         fprintf(stderr,
                 "md-lcm-bridge: frames %" PRIu64 " (telemetry %" PRIu64 ", ignored %" PRIu64 ", malformed %" PRIu64
                 ", dropped %" PRIu64 ", late %" PRIu64 "), bad log lines %" PRIu64 ", truth records %" PRIu64
-                " (errors %" PRIu64 "), messages %" PRIu64 " (errors %" PRIu64 ")\n",
+                " (errors %" PRIu64 ", ignored %" PRIu64 "), messages %" PRIu64 " (errors %" PRIu64 ")\n",
                 s->frames, s->telemetry, s->ignored, s->malformed, s->dropped, s->late, bad_lines, s->truth_records,
-                s->truth_errors, s->messages, s->sink_errors);
+                s->truth_errors, s->truth_ignored, s->messages, s->sink_errors);
     }
     if (rc == 0 && s->sink_errors > 0u) {
         rc = EXIT_RUNTIME;
