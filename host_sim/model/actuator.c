@@ -39,7 +39,14 @@ md_status_t actuator_init(actuator_t *a, const actuator_params_t *p, double star
     a->st.direction = 1;
     a->st.at_upper_stop = a->position_um <= 0.0;
     a->st.at_lower_stop = a->position_um >= p->travel_um;
+    sim_model_faults_default(&a->faults);
     return MD_OK;
+}
+
+void actuator_set_faults(actuator_t *a, const sim_model_faults_t *f, uint64_t seed, uint32_t electrode)
+{
+    a->faults = *f;
+    sim_rng_init(&a->fault_rng, seed, SIM_RNG_FAULT, electrode, 1u);
 }
 
 md_status_t actuator_command(actuator_t *a, double t_now_s, uint32_t count, int direction, double rate_hz)
@@ -82,7 +89,20 @@ static double actuator_step_length_um(actuator_t *a, int dir)
 static bool actuator_apply_step(actuator_t *a, double t_step)
 {
     const int dir = a->st.direction;
-    const double next = a->position_um + actuator_step_length_um(a, dir);
+    const sim_step_fault_t fault = sim_fault_actuator_step(&a->faults, &a->fault_rng, t_step);
+    if (fault == SIM_STEP_STALL) {
+        a->t_last_step_s = t_step;
+        a->st.state = ACTUATOR_STALLED;
+        a->st.stall_count++;
+        a->fault_stalls++;
+        return false;
+    }
+    double len_um = actuator_step_length_um(a, dir);   /* drawn anyway: healthy stream aligned */
+    if (fault == SIM_STEP_SLIP) {
+        a->fault_slips++;
+        len_um = -(double)dir * a->faults.act_slip_um;
+    }
+    const double next = a->position_um + len_um;
     a->t_last_step_s = t_step;
     if (next >= a->p.travel_um || next <= 0.0) {
         const bool lower = next >= a->p.travel_um;

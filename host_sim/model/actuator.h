@@ -21,6 +21,7 @@
 #include <stdint.h>
 
 #include "common/md_status.h"
+#include "model/sim_fault.h"
 #include "model/sim_rng.h"
 
 /// Parameters; defaults in actuator_default_params() and docs/simulator.md.
@@ -60,6 +61,9 @@ typedef struct {
     double t_last_step_s;   ///< time of the most recent executed step (-1: none)
     actuator_status_t st;
     uint64_t missed_steps, slips;  ///< counters of the model's imperfections
+    sim_model_faults_t faults;     ///< injected stall/slip windows (actuator_set_faults)
+    sim_rng_t fault_rng;           ///< their own stream: the healthy one stays aligned
+    uint64_t fault_stalls, fault_slips;  ///< injected events that happened
 } actuator_t;
 
 /// Fills the documented defaults.
@@ -81,6 +85,11 @@ md_status_t actuator_command(actuator_t *a, double t_now_s, uint32_t count, int 
 double actuator_advance_to(actuator_t *a, double t_s);
 /// Current status (state at the model time).
 actuator_status_t actuator_status(const actuator_t *a);
+/// Installs the stall/slip windows of `f` (copied) with a fault stream of
+/// (seed, electrode). A stalled step does not move: the state becomes STALLED
+/// (stall_count++) and the rest of the command is dropped, as at an end stop.
+/// A slipping step moves back by act_slip_um instead of forward.
+void actuator_set_faults(actuator_t *a, const sim_model_faults_t *f, uint64_t seed, uint32_t electrode);
 /// Steps needed for `distance_um` at the mean step length of that direction.
 uint32_t actuator_steps_for(const actuator_params_t *p, double distance_um);
 

@@ -29,6 +29,7 @@ void sim_electrode_default_config(sim_electrode_config_t *c)
     neuron_default_model_params(&c->neuron_model);
     c->start_um = 1000.0;
     sim_random_neurons_default(&c->random_neurons);
+    sim_model_faults_default(&c->faults);
 }
 
 static md_status_t place_random_neurons(sim_electrode_t *el, uint64_t seed)
@@ -147,6 +148,9 @@ md_status_t sim_electrode_init(sim_electrode_t *el, const sim_electrode_config_t
                          ? sim_rng_exponential(&el->art_rng, 1.0 / sp->large_artifact_rate_hz)
                          : (double)INFINITY;
     el->motion_t0_s = -1.0e9;
+    actuator_set_faults(&el->act, &cfg->faults, seed, index);
+    sim_hall_fault_init(&el->hall_fault, seed, index);
+    sim_signal_fault_init(&el->sig_fault, seed, index, el->fs);
     const double disp = tissue_displacement_um(&el->tissue);
     for (uint32_t k = 0u; k < el->n_neurons; ++k) {
         el->prev_dz[k] = el->act.position_um - (neuron_depth_um(&el->neurons[k], 0.0) + disp);
@@ -298,6 +302,8 @@ size_t sim_electrode_generate(sim_electrode_t *el, int16_t *out, size_t n, sim_g
         const uint64_t room = el->rendered_until - el->cursor;
         const size_t m = (n - produced < room) ? n - produced : (size_t)room;
         electrode_synth(el, out + produced, el->cursor, m);
+        sim_fault_signal_apply(&el->cfg.faults, &el->sig_fault, el->cursor, el->fs, el->cfg.signal.adc_gain_uv,
+                               out + produced, m);
         gt_n = deliver(el, el->cursor + m, gt, gt_n, gt_cap);
         el->cursor += m;
         produced += m;
@@ -331,7 +337,10 @@ md_status_t sim_electrode_command(sim_electrode_t *el, uint32_t count, int direc
 
 uint32_t sim_electrode_hall_read(sim_electrode_t *el)
 {
-    return hall_read(&el->hall, el->act.position_um, sim_electrode_time_s(el));
+    const double t_s = sim_electrode_time_s(el);
+    const uint32_t code = hall_read(&el->hall, el->act.position_um, t_s);
+    const uint32_t code_max = (uint32_t)(ldexp(1.0, (int)el->hall.p.adc_bits) - 1.0);
+    return sim_fault_hall_apply(&el->cfg.faults, &el->hall_fault, t_s, code, code_max);
 }
 
 double sim_electrode_snr_at(const sim_electrode_t *el, uint32_t k, double tip_um)

@@ -25,6 +25,7 @@
 #include "model/actuator.h"
 #include "model/hall_sensor.h"
 #include "model/neuron.h"
+#include "model/sim_fault.h"
 #include "model/signal.h"
 #include "model/tissue.h"
 
@@ -57,6 +58,7 @@ typedef struct {
     uint32_t n_neurons;                   ///< explicit neurons
     neuron_params_t neurons[SIM_MAX_NEURONS];
     sim_random_neurons_t random_neurons;
+    sim_model_faults_t faults;            ///< injected plant faults (default: none)
 } sim_electrode_config_t;
 
 /// One ground-truth spike.
@@ -107,6 +109,8 @@ typedef struct {
     size_t n_pending;
     uint64_t gt_dropped;      ///< truth entries lost to full buffers (counted, never silent)
     uint64_t adc_clipped;     ///< samples saturated by the ADC
+    sim_hall_fault_state_t hall_fault;   ///< injected Hall faults (cfg.faults)
+    sim_signal_fault_state_t sig_fault;  ///< injected signal faults (cfg.faults)
     FILE *truth;              ///< optional JSON-lines truth sink (not owned)
 } sim_electrode_t;
 

@@ -21,7 +21,8 @@ typedef enum {
     SIM_RNG_MUA = 5,
     SIM_RNG_ARTIFACT = 6,
     SIM_RNG_PLACEMENT = 7,
-    SIM_RNG_NEURON = 8
+    SIM_RNG_NEURON = 8,
+    SIM_RNG_FAULT = 9       ///< model faults (index: 0 Hall, 1 actuator, 2 signal)
 } sim_rng_kind_t;
 
 /// One stream's state. Plain data: copy it to fork a stream.

@@ -294,6 +294,232 @@ static void parse_section(ctx_t *c, const yaml_node_t *m, const field_t *fs, siz
     }
 }
 
+/* ---- faults ----------------------------------------------------------------- */
+
+typedef enum {
+    FK_BUS_LOSS, FK_BUS_CORRUPT, FK_BUS_DUP, FK_BUS_DELAY, FK_BUS_REORDER,
+    FK_NODE_SILENT, FK_HALL_GLITCH, FK_HALL_STUCK, FK_ACT_STALL, FK_ACT_SLIP,
+    FK_ADC_SATURATION, FK_ARTIFACT_STORM, FK_CTRL_RESTART, FK_COUNT
+} fault_kind_t;
+
+static const char *const FAULT_KIND_NAMES[FK_COUNT] = {
+    "bus_loss", "bus_corrupt", "bus_dup", "bus_delay", "bus_reorder", "node_silent", "hall_glitch",
+    "hall_stuck", "actuator_stall", "actuator_slip", "adc_saturation", "artifact_storm", "controller_restart"};
+
+#define FAULT_FOREVER_S 1e300
+
+typedef struct {
+    double from_s, to_s, at_s, prob, codes, slip_um, rate_hz, amp_uv;
+    uint32_t electrode, frames, can_id;
+} fault_entry_t;
+
+/* Bits of FAULT_FIELDS, to check which keys a kind accepts. */
+enum {
+    FB_FROM = 1u << 0, FB_TO = 1u << 1, FB_AT = 1u << 2, FB_PROB = 1u << 3, FB_CODES = 1u << 4,
+    FB_SLIP = 1u << 5, FB_RATE = 1u << 6, FB_AMP = 1u << 7, FB_ELECTRODE = 1u << 8, FB_FRAMES = 1u << 9,
+    FB_CANID = 1u << 10, FB_NODE = 1u << 11, FB_DIR = 1u << 12
+};
+
+static const field_t FAULT_FIELDS[] = {
+    FD(fault_entry_t, from_s, 0.0, 1e7),    FD(fault_entry_t, to_s, 0.0, 1e7),
+    FD(fault_entry_t, at_s, 0.0, 1e7),      FD(fault_entry_t, prob, 0.0, 1.0),
+    FD(fault_entry_t, codes, 1.0, 16777216.0), FD(fault_entry_t, slip_um, 0.001, 1000.0),
+    FD(fault_entry_t, rate_hz, 0.01, 1000.0), FD(fault_entry_t, amp_uv, 1.0, 1e5),
+    FU(fault_entry_t, electrode, 0.0, (double)SIM_MAX_ELECTRODES - 1.0),
+    FU(fault_entry_t, frames, 1.0, 32.0),   FU(fault_entry_t, can_id, 0.0, 2047.0),
+};
+
+/* Keys each kind accepts (kind itself always), and the ones it requires. */
+static uint32_t fault_allowed(fault_kind_t k)
+{
+    const uint32_t win = FB_FROM | FB_TO;
+    switch (k) {
+    case FK_BUS_LOSS: case FK_BUS_CORRUPT: case FK_BUS_DUP: case FK_BUS_REORDER:
+        return win | FB_PROB | FB_DIR | FB_CANID;
+    case FK_BUS_DELAY: return win | FB_PROB | FB_DIR | FB_CANID | FB_FRAMES;
+    case FK_NODE_SILENT: return win | FB_NODE;
+    case FK_HALL_GLITCH: return win | FB_ELECTRODE | FB_PROB | FB_CODES;
+    case FK_ACT_SLIP: return win | FB_ELECTRODE | FB_PROB | FB_SLIP;
+    case FK_ARTIFACT_STORM: return win | FB_ELECTRODE | FB_RATE | FB_AMP;
+    case FK_HALL_STUCK: case FK_ACT_STALL: case FK_ADC_SATURATION: return win | FB_ELECTRODE;
+    case FK_CTRL_RESTART: return FB_AT;
+    case FK_COUNT: default: return 0u;
+    }
+}
+
+static uint32_t fault_required(fault_kind_t k)
+{
+    if (k <= FK_BUS_REORDER) {
+        return FB_PROB;
+    }
+    return (k == FK_NODE_SILENT) ? FB_NODE : (k == FK_CTRL_RESTART) ? FB_AT : 0u;
+}
+
+static const char *const FAULT_KEY_NAMES[] = {"from_s", "to_s", "at_s", "prob", "codes", "slip_um", "rate_hz",
+                                              "amp_uv", "electrode", "frames", "can_id", "node", "direction"};
+
+typedef struct {
+    fault_kind_t kind;
+    uint32_t seen, node, dirs;
+    fault_entry_t e;
+    size_t line;
+} fault_item_t;
+
+/* String-valued keys of a fault; returns false if the key is not one. */
+static bool fault_string_key(ctx_t *c, const char *key, const yaml_node_t *v, fault_item_t *it)
+{
+    static const char *const nodes[] = {"act", "hall", "fe"};
+    static const char *const dirs[] = {"tx", "rx", "both"};
+    const bool is_node = strcmp(key, "node") == 0, is_dir = strcmp(key, "direction") == 0;
+    if (!is_node && !is_dir) {
+        return false;
+    }
+    const char *sv = (v->type == YAML_SCALAR_NODE) ? sval(v) : "";
+    for (uint32_t i = 0u; i < 3u; ++i) {
+        if (strcmp(sv, is_node ? nodes[i] : dirs[i]) == 0) {
+            if (is_node) {
+                it->node = i + 2u;   /* md_node_id_t: 2 act, 3 hall, 4 fe */
+            } else {
+                it->dirs = i + 1u;
+            }
+            it->seen |= is_node ? FB_NODE : FB_DIR;
+            return true;
+        }
+    }
+    perr(c, line_of(v), "'%s' must be %s, got '%s'", key, is_node ? "act, hall or fe" : "tx, rx or both", sv);
+    return true;
+}
+
+/* Reads one `faults` entry's keys into *it; false if the entry is unusable. */
+static bool fault_read(ctx_t *c, const yaml_node_t *m, fault_item_t *it)
+{
+    memset(it, 0, sizeof *it);
+    it->kind = FK_COUNT;
+    it->dirs = 3u;
+    it->line = line_of(m);
+    it->e = (fault_entry_t){0.0, FAULT_FOREVER_S, 0.0, 0.0, 2000.0, 2.0, 20.0, 3000.0, UINT32_MAX, 4u, 0u};
+    if (m->type != YAML_MAPPING_NODE) {
+        perr(c, line_of(m), "a fault must be a mapping");
+        return false;
+    }
+    const int before = c->count;
+    for (yaml_node_pair_t *pr = m->data.mapping.pairs.start; pr < m->data.mapping.pairs.top; ++pr) {
+        const yaml_node_t *k = node_at(c, pr->key), *v = node_at(c, pr->value);
+        const char *key = (k->type == YAML_SCALAR_NODE) ? sval(k) : "";
+        if (strcmp(key, "kind") == 0) {
+            for (uint32_t i = 0u; i < (uint32_t)FK_COUNT && v->type == YAML_SCALAR_NODE; ++i) {
+                it->kind = (strcmp(sval(v), FAULT_KIND_NAMES[i]) == 0) ? (fault_kind_t)i : it->kind;
+            }
+            if (it->kind == FK_COUNT) {
+                perr(c, line_of(v), "unknown fault kind '%s'", v->type == YAML_SCALAR_NODE ? sval(v) : "");
+            }
+        } else if (!fault_string_key(c, key, v, it)) {
+            const field_t *f = find_field(FAULT_FIELDS, NFIELDS(FAULT_FIELDS), key);
+            if (f == NULL) {
+                perr(c, line_of(k), "unknown key '%s' in fault", key);
+                continue;
+            }
+            it->seen |= 1u << (uint32_t)(f - FAULT_FIELDS);
+            set_field(c, f, v, &it->e, "fault");
+        }
+    }
+    if (it->kind == FK_COUNT) {
+        if (c->count == before) {
+            perr(c, it->line, "missing required field 'kind' in fault");
+        }
+        return false;
+    }
+    const uint32_t bad = it->seen & ~fault_allowed(it->kind), missing = fault_required(it->kind) & ~it->seen;
+    for (uint32_t b = 0u; b < NFIELDS(FAULT_KEY_NAMES); ++b) {
+        if ((bad >> b) & 1u) {
+            perr(c, it->line, "'%s' does not apply to fault kind %s", FAULT_KEY_NAMES[b], FAULT_KIND_NAMES[it->kind]);
+        }
+        if ((missing >> b) & 1u) {
+            perr(c, it->line, "fault kind %s needs '%s'", FAULT_KIND_NAMES[it->kind], FAULT_KEY_NAMES[b]);
+        }
+    }
+    if (it->kind != FK_CTRL_RESTART && !(it->e.to_s > it->e.from_s)) {
+        perr(c, it->line, "fault window needs from_s < to_s (got %g, %g)", it->e.from_s, it->e.to_s);
+    }
+    return c->count == before;
+}
+
+/* Sets one model-fault window of electrode cfg; a second one is an error. */
+static void fault_model_set(ctx_t *c, const fault_item_t *it, sim_model_faults_t *mf)
+{
+    sim_window_t *w = NULL;
+    switch (it->kind) {
+    case FK_HALL_GLITCH: w = &mf->hall_glitch; mf->hall_glitch_codes = it->e.codes;
+        if (it->seen & FB_PROB) { mf->hall_glitch_prob = it->e.prob; }
+        break;
+    case FK_HALL_STUCK: w = &mf->hall_stuck; break;
+    case FK_ACT_STALL: w = &mf->act_stall; break;
+    case FK_ACT_SLIP: w = &mf->act_slip; mf->act_slip_um = it->e.slip_um;
+        if (it->seen & FB_PROB) { mf->act_slip_prob = it->e.prob; }
+        break;
+    case FK_ADC_SATURATION: w = &mf->adc_saturation; break;
+    case FK_ARTIFACT_STORM: w = &mf->artifact_storm; mf->storm_rate_hz = it->e.rate_hz; mf->storm_amp_uv = it->e.amp_uv;
+        break;
+    case FK_BUS_LOSS: case FK_BUS_CORRUPT: case FK_BUS_DUP: case FK_BUS_DELAY: case FK_BUS_REORDER:
+    case FK_NODE_SILENT: case FK_CTRL_RESTART: case FK_COUNT: default: return;
+    }
+    if (w->to_s > w->from_s) {
+        perr(c, it->line, "a second %s fault on one electrode", FAULT_KIND_NAMES[it->kind]);
+        return;
+    }
+    w->from_s = it->e.from_s;
+    w->to_s = it->e.to_s;
+}
+
+static void fault_store(ctx_t *c, const fault_item_t *it, scenario_t *sc)
+{
+    scenario_faults_t *f = &sc->faults;
+    if (it->kind <= FK_BUS_REORDER) {
+        if (f->n_bus >= SCENARIO_BUS_FAULTS_MAX) {
+            perr(c, it->line, "more than %u bus faults", (unsigned)SCENARIO_BUS_FAULTS_MAX);
+            return;
+        }
+        f->bus[f->n_bus++] = (scenario_bus_fault_t){(uint32_t)it->kind, it->e.prob, it->e.from_s, it->e.to_s,
+                                                    it->dirs, it->e.frames, it->e.can_id, (it->seen & FB_CANID) ? 1u : 0u};
+    } else if (it->kind == FK_NODE_SILENT) {
+        if (f->n_silent >= SCENARIO_SILENT_MAX) {
+            perr(c, it->line, "more than %u node_silent faults", (unsigned)SCENARIO_SILENT_MAX);
+            return;
+        }
+        f->silent[f->n_silent++] = (scenario_silence_t){it->node, it->e.from_s, it->e.to_s};
+    } else if (it->kind == FK_CTRL_RESTART) {
+        if (f->n_restarts >= SCENARIO_RESTARTS_MAX ||
+            (f->n_restarts > 0u && !(it->e.at_s > f->restart_at_s[f->n_restarts - 1u]))) {
+            perr(c, it->line, "controller restarts: at most %u, in ascending at_s", (unsigned)SCENARIO_RESTARTS_MAX);
+            return;
+        }
+        f->restart_at_s[f->n_restarts++] = it->e.at_s;
+    } else if (it->e.electrode != UINT32_MAX && it->e.electrode >= sc->n_electrodes) {
+        perr(c, it->line, "fault electrode %u but the scenario has %u", (unsigned)it->e.electrode,
+             (unsigned)sc->n_electrodes);
+    } else {
+        for (uint32_t e = 0u; e < sc->n_electrodes; ++e) {
+            if (it->e.electrode == UINT32_MAX || it->e.electrode == e) {
+                fault_model_set(c, it, &sc->electrodes[e].faults);
+            }
+        }
+    }
+}
+
+static void parse_faults(ctx_t *c, const yaml_node_t *seq, scenario_t *sc)
+{
+    if (seq->type != YAML_SEQUENCE_NODE) {
+        perr(c, line_of(seq), "faults must be a sequence");
+        return;
+    }
+    for (yaml_node_item_t *i = seq->data.sequence.items.start; i < seq->data.sequence.items.top; ++i) {
+        fault_item_t it;
+        if (fault_read(c, node_at(c, *i), &it)) {
+            fault_store(c, &it, sc);
+        }
+    }
+}
+
 /* ---- structure ------------------------------------------------------------ */
 
 /* Where each model section was last given (for consistency messages). */
@@ -466,7 +692,7 @@ static void parse_root(ctx_t *c, const yaml_node_t *root, scenario_t *sc)
     d.base = sc->electrodes[0];
     neuron_default_params(&d.neuron);
     d.lines = (lines_t){line_of(root), line_of(root), line_of(root), line_of(root), line_of(root)};
-    const yaml_node_t *electrodes = NULL;
+    const yaml_node_t *electrodes = NULL, *faults = NULL;
     const char *seen[32];
     size_t n_seen = 0u;
     for (yaml_node_pair_t *pr = root->data.mapping.pairs.start; pr < root->data.mapping.pairs.top; ++pr) {
@@ -488,6 +714,8 @@ static void parse_root(ctx_t *c, const yaml_node_t *root, scenario_t *sc)
         }
         if (strcmp(sval(k), "electrodes") == 0) {
             electrodes = v;
+        } else if (strcmp(sval(k), "faults") == 0) {
+            faults = v;   /* after the electrodes: model faults go into them */
         } else if (!parse_top_key(c, sval(k), v, &d, sc)) {
             perr(c, line_of(k), "unknown key '%s'", sval(k));
         }
@@ -498,6 +726,9 @@ static void parse_root(ctx_t *c, const yaml_node_t *root, scenario_t *sc)
         return;
     }
     parse_electrodes(c, electrodes, &d, sc);
+    if (faults != NULL) {
+        parse_faults(c, faults, sc);
+    }
 }
 
 void scenario_default(scenario_t *sc)
@@ -585,4 +816,33 @@ int scenario_load(scenario_t *sc, const char *path, char *err, size_t errlen)
 md_status_t scenario_make_world(const scenario_t *sc, uint64_t seed, sim_world_t *w)
 {
     return sim_world_init(w, sc->electrodes, sc->n_electrodes, seed);
+}
+
+bool scenario_node_silent(const scenario_t *sc, uint32_t node, double t_s)
+{
+    for (uint32_t i = 0u; i < sc->faults.n_silent && i < SCENARIO_SILENT_MAX; ++i) {
+        const scenario_silence_t *q = &sc->faults.silent[i];
+        if (q->node == node && t_s >= q->from_s && t_s < q->to_s) {
+            return true;
+        }
+    }
+    return false;
+}
+
+uint32_t scenario_restarts_due(const scenario_t *sc, double t_prev_s, double t_now_s)
+{
+    uint32_t n = 0u;
+    for (uint32_t i = 0u; i < sc->faults.n_restarts && i < SCENARIO_RESTARTS_MAX; ++i) {
+        n += (sc->faults.restart_at_s[i] > t_prev_s && sc->faults.restart_at_s[i] <= t_now_s) ? 1u : 0u;
+    }
+    return n;
+}
+
+bool scenario_has_faults(const scenario_t *sc)
+{
+    bool any = sc->faults.n_bus + sc->faults.n_silent + sc->faults.n_restarts > 0u;
+    for (uint32_t e = 0u; e < sc->n_electrodes && e < SIM_MAX_ELECTRODES; ++e) {
+        any = any || sim_model_faults_any(&sc->electrodes[e].faults);
+    }
+    return any;
 }

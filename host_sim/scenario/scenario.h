@@ -21,7 +21,20 @@
 ///     neurons: [{depth_um: 1200, ...}]  # depth_um required
 ///     random_neurons: {count: 5, ...}
 /// export: {intervals: 20, interval_s: 10, step_um: 10, settle_s: 1}
+/// faults:                      # injected faults (docs/safety.md), any order
+///   - {kind: hall_glitch, electrode: 0, from_s: 30, to_s: 60, prob: 0.1, codes: 2000}
+///   - {kind: hall_stuck | actuator_stall | adc_saturation, electrode: 0, from_s: .., to_s: ..}
+///   - {kind: actuator_slip, prob: 0.2, slip_um: 2, from_s: .., to_s: ..}
+///   - {kind: artifact_storm, rate_hz: 20, amp_uv: 3000, from_s: .., to_s: ..}
+///   - {kind: bus_loss | bus_corrupt | bus_dup | bus_delay | bus_reorder, prob: 0.05,
+///      direction: both|tx|rx, can_id: 528, frames: 4 (bus_delay only), from_s: .., to_s: ..}
+///   - {kind: node_silent, node: act|hall|fe, from_s: 40, to_s: 55}
+///   - {kind: controller_restart, at_s: 120}
 /// ```
+/// Fault windows are simulated time [from_s, to_s) (defaults 0 and forever);
+/// `electrode` omitted = every electrode. Model faults go into each
+/// electrode's cfg.faults (the model applies them); bus, node and restart
+/// faults are in scenario_t.faults for the launcher and the sim nodes.
 /// Errors: unknown key, duplicate key, wrong node kind or scalar type, value
 /// out of range, missing required field, inconsistent combination: each one
 /// line `file:line: reason`; parsing goes on after an error so that one run
@@ -29,6 +42,7 @@
 #ifndef SIM_SCENARIO_H
 #define SIM_SCENARIO_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -44,6 +58,36 @@ typedef struct {
     double settle_s;     ///< wait after a move before the next interval (default 1 s)
 } scenario_export_t;
 
+#define SCENARIO_BUS_FAULTS_MAX 8u
+#define SCENARIO_SILENT_MAX 4u
+#define SCENARIO_RESTARTS_MAX 4u
+
+/// One bus fault (a md_bus_fault wrapper around the simulator's endpoint).
+typedef struct {
+    uint32_t kind;           ///< md_bus_fault_kind_t: 0 loss, 1 corrupt, 2 dup, 3 delay, 4 reorder
+    double prob;             ///< per frame, required
+    double from_s, to_s;     ///< simulated-time window
+    uint32_t directions;     ///< 1 frames the simulator sends, 2 frames it receives, 3 both (default)
+    uint32_t frames;         ///< delay in frames (bus_delay; default 4)
+    uint32_t can_id;         ///< only this CAN id (has_id), else every frame
+    uint32_t has_id;
+} scenario_bus_fault_t;
+
+/// One silence of a simulated node (it sends nothing, heartbeat included).
+typedef struct {
+    uint32_t node;           ///< md_node_id_t: 2 act, 3 hall, 4 fe
+    double from_s, to_s;
+} scenario_silence_t;
+
+typedef struct {
+    uint32_t n_bus;
+    scenario_bus_fault_t bus[SCENARIO_BUS_FAULTS_MAX];
+    uint32_t n_silent;
+    scenario_silence_t silent[SCENARIO_SILENT_MAX];
+    uint32_t n_restarts;
+    double restart_at_s[SCENARIO_RESTARTS_MAX];   ///< controller restarts, ascending
+} scenario_faults_t;
+
 typedef struct {
     char name[SCENARIO_NAME_MAX];
     uint64_t seed;            ///< default 1
@@ -51,6 +95,7 @@ typedef struct {
     uint32_t n_electrodes;
     sim_electrode_config_t electrodes[SIM_MAX_ELECTRODES];
     scenario_export_t export_cfg;
+    scenario_faults_t faults;  ///< launcher/node-level faults (model faults are per electrode)
 } scenario_t;
 
 /// Every default, one electrode with no neurons.
@@ -61,6 +106,13 @@ void scenario_default(scenario_t *sc);
 int scenario_parse(scenario_t *sc, const char *text, size_t len, const char *file, char *err, size_t errlen);
 /// Reads and parses a file. -1 if it cannot be read (message in err).
 int scenario_load(scenario_t *sc, const char *path, char *err, size_t errlen);
+/// True while simulated node `node` (md_node_id_t) must stay silent at t_s.
+bool scenario_node_silent(const scenario_t *sc, uint32_t node, double t_s);
+/// Number of controller restarts scheduled in (t_prev_s, t_now_s]: the
+/// launcher restarts the controller when this is non-zero.
+uint32_t scenario_restarts_due(const scenario_t *sc, double t_prev_s, double t_now_s);
+/// True if the scenario declares any fault at all.
+bool scenario_has_faults(const scenario_t *sc);
 /// Builds the world of a scenario with `seed`.
 md_status_t scenario_make_world(const scenario_t *sc, uint64_t seed, sim_world_t *w);
 
