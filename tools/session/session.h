@@ -35,6 +35,7 @@ typedef struct {
     const char *python;          ///< --python: interpreter for the scorer
     bool no_score;               ///< --no-score: leave report.json out
     bool quiet;                  ///< --quiet: no progress lines
+    bool no_sample_log;          ///< --no-sample-log: REC_DATA frames stay out of the log
     bool help;
 } session_opts_t;
 
@@ -55,6 +56,7 @@ typedef struct {
     FILE *log;                   ///< candump -L lines (owned by the caller)
     char iface[16];              ///< interface column of the log
     bool quiet;
+    bool log_samples;            ///< REC_DATA frames go to the log too (default)
     uint32_t electrodes;         ///< electrodes of the scenario
     session_goal_t goal;
     uint64_t frames;

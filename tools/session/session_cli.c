@@ -11,7 +11,8 @@ const char *session_cli_usage(void)
 {
     return "usage: microdrive-session --scenario FILE [--seed N] [--bus auto|vcan0|udp|udp:PORT|IFACE|inproc]\n"
            "                          --out DIR [--cycles N | --duration-s S] [--idle-s S]\n"
-           "                          [--bin-dir DIR] [--python PY] [--no-score] [--quiet] [--help]\n"
+           "                          [--bin-dir DIR] [--python PY] [--no-score] [--no-sample-log]\n"
+           "                          [--quiet] [--help]\n"
            "  --scenario FILE   simulator scenario (scenarios/*.yaml)\n"
            "  --seed N          seed of every random stream (default: the scenario's)\n"
            "  --bus SPEC        inproc: simulator + controller in this process, virtual clock, as fast\n"
@@ -27,6 +28,8 @@ const char *session_cli_usage(void)
            "  --python PY       interpreter for tools/session/score.py (default: $MD_PYTHON, the\n"
            "                    project venv, python3)\n"
            "  --no-score        no report.json\n"
+           "  --no-sample-log   leave the REC_DATA frames (~1.7 MB per cycle) out of candump.log; the\n"
+           "                    report does not need them\n"
            "  --quiet           no progress lines\n"
            "Progress: one line per electrode and cycle (TLM_STATUS). Exit: 0 goal reached, 4 ended idle\n"
            "before the goal (report written), 1 runtime error, 2 usage.\n";
@@ -108,6 +111,8 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
             o->no_score = true;
         } else if (strcmp(a, "--quiet") == 0) {
             o->quiet = true;
+        } else if (strcmp(a, "--no-sample-log") == 0) {
+            o->no_sample_log = true;
         } else if (i + 1 >= argc || strncmp(a, "--", 2) != 0) {
             (void)snprintf(msg, msglen, "'%s' needs a value or is not an option", a);
             return -1;

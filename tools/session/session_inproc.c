@@ -125,16 +125,8 @@ static bool serve_plant(inproc_t *ip)
 static void poll_controller(inproc_t *ip)
 {
     drain_controller(ip);
-    for (uint32_t guard = 0; guard < INPROC_POLL_GUARD; guard++) {
-        md_controller_poll(ip->ctrl, ip->now_us);
-        drain_recorder(ip);
-        if (md_controller_next_deadline_us(ip->ctrl) > ip->now_us) {
-            return;
-        }
-        if (serve_plant(ip)) {
-            continue;
-        }
-    }
+    md_controller_poll(ip->ctrl, ip->now_us);
+    drain_recorder(ip);
 }
 
 static int open_endpoints(inproc_t *ip, const char *spec)
@@ -177,12 +169,10 @@ static int start_nodes(inproc_t *ip, simnode_world_t *world)
 static session_end_t inproc_loop(inproc_t *ip, uint64_t idle_us)
 {
     uint64_t last_activity = ip->track->activity, activity_at = ip->now_us;
+    uint32_t spins = 0u;   /* passes at one instant without any frame: a controller that never rests */
     for (;;) {   /* ends by the goal, idleness or a signal */
-        (void)serve_plant(ip);
+        const bool served = serve_plant(ip);
         poll_controller(ip);
-        if (serve_plant(ip)) {
-            continue;   /* answers first: the clock stands still */
-        }
         if (session_track_done(ip->track)) {
             return SESSION_END_GOAL;
         }
@@ -192,12 +182,20 @@ static session_end_t inproc_loop(inproc_t *ip, uint64_t idle_us)
         if (ip->track->activity != last_activity) {
             last_activity = ip->track->activity;
             activity_at = ip->now_us;
+            spins = 0u;
         } else if (ip->now_us - activity_at >= idle_us) {
             return SESSION_END_IDLE;
         }
         const uint64_t d = md_controller_next_deadline_us(ip->ctrl);
-        uint64_t next = (d < ip->next_hb_us) ? d : ip->next_hb_us;
-        ip->now_us = (next > ip->now_us) ? next : ip->now_us;
+        if (served || d <= ip->now_us) {
+            if (++spins > INPROC_POLL_GUARD) {
+                fprintf(stderr, "microdrive-session: the controller has work at %" PRIu64 " us forever\n",
+                        ip->now_us);
+                return SESSION_END_ERROR;
+            }
+            continue;   /* answers and due work first: the clock stands still */
+        }
+        ip->now_us = (d < ip->next_hb_us) ? d : ip->next_hb_us;
         if (ip->now_us >= ip->next_hb_us) {
             plant_heartbeats(ip);
             ip->next_hb_us += INPROC_HB_PERIOD_US;

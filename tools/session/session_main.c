@@ -136,6 +136,7 @@ static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label
     session_track_t track;
     const session_goal_t goal = {o->cycles, (o->cycles > 0u) ? 0u : (uint64_t)(o->duration_s * 1e6)};
     session_track_init(&track, log, "inproc", electrodes, goal, o->quiet);
+    track.log_samples = !o->no_sample_log;
     session_end_t end;
     if (bus_is_inproc(o->bus)) {
         (void)snprintf(bus_label, len, "inproc");

@@ -20,6 +20,7 @@ void session_track_init(session_track_t *t, FILE *log, const char *iface, uint32
     t->electrodes = (electrodes > SESSION_MAX_ELECTRODES) ? SESSION_MAX_ELECTRODES : electrodes;
     t->goal = goal;
     t->quiet = quiet;
+    t->log_samples = true;
     for (uint32_t e = 0; e < SESSION_MAX_ELECTRODES; e++) {
         t->status_last_cycle[e] = -1;
         t->need_cycle[e] = -1;
@@ -29,7 +30,8 @@ void session_track_init(session_track_t *t, FILE *log, const char *iface, uint32
 static void track_log(session_track_t *t, const md_frame_t *f, uint64_t stamp_us)
 {
     char text[MD_BUS_TEXT_MAX];
-    if (t->log == NULL || md_bus_text_format(f, text, sizeof text) < 0) {
+    if (t->log == NULL || (!t->log_samples && f->id == MD_CAN_REC_DATA_FRAME_ID) ||
+        md_bus_text_format(f, text, sizeof text) < 0) {
         return;
     }
     (void)fprintf(t->log, "(%010" PRIu64 ".%06" PRIu64 ") %s %s\n", stamp_us / 1000000u, stamp_us % 1000000u,
