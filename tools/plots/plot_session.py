@@ -25,6 +25,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from lcm_session import SFSM_STATES, read_log  # noqa: E402
 
 MATCH_TOL_S = 0.0005  # a detection matches a true spike within 0.5 ms
+MAX_LEGEND = 10       # more tracks than this: IDs only at the trajectories' ends, no legend
+MAX_ROWS = 12         # matrix rows / waveform panels: the tracks with the most data, the rest pooled
 
 
 def minutes(utime):
@@ -79,6 +81,7 @@ def plot_tracks_pc(s, out, els):
     fig, ax = new_figure(len(els), 3)
     for r, e in enumerate(els):
         hist = track_history(s, e)
+        labelled = set(sorted(hist, key=lambda t: -len(hist[t]))[:MAX_ROWS])  # IDs of the longest tracks
         for tid, rows in sorted(hist.items()):
             a = np.array(rows)
             c = track_color(tid)
@@ -86,7 +89,9 @@ def plot_tracks_pc(s, out, els):
             ax[r, 0].plot(a[:, 1], a[:, 2], "-", color=c, lw=0.8)
             ax[r, 0].plot(a[det, 1], a[det, 2], "o", color=c, ms=3)
             ax[r, 0].plot(a[miss, 1], a[miss, 2], "x", color="k", ms=6, mew=1.5)
-            ax[r, 0].annotate(f"T{tid}", (a[-1, 1], a[-1, 2]), xytext=(4, 4), textcoords="offset points", color=c)
+            if tid in labelled:
+                ax[r, 0].annotate(f"T{tid}", (a[-1, 1], a[-1, 2]), xytext=(4, 4), textcoords="offset points",
+                                  color=c)
             for col, dim in ((1, 1), (2, 2)):
                 ax[r, col].plot(a[:, 0], a[:, dim], "-", color=c, lw=0.8, label=f"T{tid}")
                 ax[r, col].plot(a[det, 0], a[det, dim], "o", color=c, ms=3)
@@ -94,7 +99,7 @@ def plot_tracks_pc(s, out, els):
         ax[r, 0].set(xlabel="PC1", ylabel="PC2", title=f"electrode {e}: track means (x = missed)")
         ax[r, 1].set(xlabel="time (min)", ylabel="PC1", title=f"electrode {e}: PC1 over time")
         ax[r, 2].set(xlabel="time (min)", ylabel="PC2", title=f"electrode {e}: PC2 over time")
-        if hist:
+        if 0 < len(hist) <= MAX_LEGEND:
             ax[r, 1].legend(fontsize=7, loc="best")
         else:
             ax[r, 0].text(0.5, 0.5, "no tracks", ha="center", transform=ax[r, 0].transAxes)
@@ -135,7 +140,8 @@ def plot_waveforms(s, out, els):
     fs = sample_rate(s)
     cmap = plt.get_cmap("viridis")
     for r, e in enumerate(els):
-        items = sorted(per_el[e].items())
+        # the tracks followed for the most cycles, in id order
+        items = sorted(sorted(per_el[e].items(), key=lambda kv: -len(kv[1]))[:cols])
         for c in range(cols):
             a = ax[r, c]
             if c >= len(items):
@@ -206,8 +212,8 @@ def plot_hypotheses(s, out, els):
         if len(t):
             ax[r, 1].stackplot(t, p.T, colors=[cmap(k / max(1, n_rank)) for k in range(n_rank)],
                                labels=[f"rank {k}" for k in range(n_rank)])
-        ax[r, 1].set(title=f"electrode {e}: probability mass by rank", xlabel="time (min)", ylabel="P",
-                     ylim=(0, 1.05))
+        ax[r, 1].set(title=f"electrode {e}: probability mass by rank", xlabel="time (min)", ylabel="P")
+        ax[r, 1].set_ylim(bottom=0.0)  # the controller's P need not sum to 1 over ranks (eq. 4.30, Remark 4.3)
     return save(fig, out, "hypotheses.png", "Hypothesis rank history")
 
 
@@ -237,6 +243,16 @@ def match_spikes(s, e):
 
 
 def plot_matrix(a, counts, e):
+    totals = {}
+    for (t, _), n in counts.items():
+        totals[t] = totals.get(t, 0) + n
+    if len(totals) > MAX_ROWS:  # pool the tracks with the fewest detections under "other" (-3)
+        keep = set(sorted(totals, key=lambda t: -totals[t])[:MAX_ROWS - 1])
+        pooled = {}
+        for (t, n_id), n in counts.items():
+            key = (t if t in keep else -3, n_id)
+            pooled[key] = pooled.get(key, 0) + n
+        counts = pooled
     tracks = sorted({k[0] for k in counts})
     neurons = sorted({k[1] for k in counts if k[1] is not None}) + [None]
     mat = np.array([[counts.get((t, n), 0) for n in neurons] for t in tracks])
@@ -246,7 +262,7 @@ def plot_matrix(a, counts, e):
             a.text(j, i, str(mat[i, j]), ha="center", va="center", fontsize=7,
                    color="w" if mat[i, j] > mat.max() / 2 else "k")
     a.set_xticks(range(len(neurons)), [f"N{n}" if n is not None else "none" for n in neurons], fontsize=7)
-    a.set_yticks(range(len(tracks)), [{-1: "outlier", -2: "unlabelled"}.get(t, f"T{t}") for t in tracks],
+    a.set_yticks(range(len(tracks)), [{-1: "outlier", -2: "unlabelled", -3: "other"}.get(t, f"T{t}") for t in tracks],
                  fontsize=7)
     a.set(title=f"electrode {e}: detections by track vs true neuron", xlabel="true neuron (0.5 ms)",
           ylabel="track label")
@@ -276,7 +292,8 @@ def plot_truth(s, out, els):
                 ax[r, 0].annotate(f"N{d.neuron} dies", (minutes(d.utime), 0), color="r", fontsize=7)
         ax[r, 0].set(title=f"electrode {e}: track SNR vs true neuron SNR", xlabel="interval start (min)",
                      ylabel="SNR")
-        ax[r, 0].legend(fontsize=7)
+        if len(ax[r, 0].get_legend_handles_labels()[0]) <= MAX_LEGEND:
+            ax[r, 0].legend(fontsize=7)
         starts = interval_starts(s)
         st = np.array([(minutes(starts.get((m.electrode, m.cycle), m.utime)), m.depth_um)
                        for m in s["MD_STATUS"] if m.electrode == e]).reshape(-1, 2)
