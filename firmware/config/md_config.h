@@ -46,7 +46,7 @@
 #define MD_MAX_TARGETS 8u           ///< targets (tracks) alive in one hypothesis
 #endif
 #ifndef MD_TRACK_POOL
-#define MD_TRACK_POOL 32u           ///< shared track records per electrode, referenced by hypotheses
+#define MD_TRACK_POOL 20u           ///< shared track records per electrode, referenced by hypotheses (exhaustion: least probable child dropped, counted)
 #endif
 
 /* ---- protocol ------------------------------------------------------------ */
