@@ -335,6 +335,7 @@ md_status_t bench_setup(void)
     g_info.d_w = (uint32_t)g_win.d_w;
     g_info.hyp = (uint32_t)g_mh_res.n_hyp;
     g_info.tracks = (uint32_t)g_mh_res.n_tracks;
+    g_info.models = (uint32_t)g_mh_res.models_fitted;
     g_info.cluster_best_g = (uint32_t)g_cl_res.best_g;
     g_ready = 1;
     return MD_OK;

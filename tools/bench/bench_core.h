@@ -63,6 +63,7 @@ typedef struct {
     uint32_t d_w;          ///< window length (samples)
     uint32_t hyp;          ///< MHTC hypotheses after the measured step
     uint32_t tracks;       ///< tracks of the leading hypothesis
+    uint32_t models;       ///< model hypotheses MHTC clustered in the measured step
     uint32_t cluster_best_g; ///< best G of clustering alone
 } bench_info_t;
 
