@@ -33,6 +33,7 @@ typedef struct {
     double idle_s;               ///< --idle-s: end when nothing but heartbeats moved for this long
     const char *bin_dir;         ///< --bin-dir: microdrive-sim/-fw (default: next to this program)
     const char *python;          ///< --python: interpreter for the scorer
+    uint32_t pace_fps;           ///< --pace: microdrive-sim's frame rate cap on a socket bus
     bool no_score;               ///< --no-score: leave report.json out
     bool quiet;                  ///< --quiet: no progress lines
     bool no_sample_log;          ///< --no-sample-log: REC_DATA frames stay out of the log

@@ -10,7 +10,7 @@
 const char *session_cli_usage(void)
 {
     return "usage: microdrive-session --scenario FILE [--seed N] [--bus auto|vcan0|udp|udp:PORT|IFACE|inproc]\n"
-           "                          --out DIR [--cycles N | --duration-s S] [--idle-s S]\n"
+           "                          --out DIR [--cycles N | --duration-s S] [--idle-s S] [--pace FPS]\n"
            "                          [--bin-dir DIR] [--python PY] [--no-score] [--no-sample-log]\n"
            "                          [--quiet] [--help]\n"
            "  --scenario FILE   simulator scenario (scenarios/*.yaml)\n"
@@ -24,6 +24,9 @@ const char *session_cli_usage(void)
            "                    S is reported (default: the scenario's duration_s)\n"
            "  --idle-s S        end early when nothing but heartbeats moved for S seconds (virtual\n"
            "                    seconds in-process, wall seconds otherwise; default 30)\n"
+           "  --pace FPS        socket bus: microdrive-sim sends at most FPS frames per wall second after\n"
+           "                    a burst, so that the controller and the recorder lose none (default\n"
+           "                    20000; 0 = no cap); changes when frames go out, never what they are\n"
            "  --bin-dir DIR     where microdrive-sim and microdrive-fw are (default: next to this program)\n"
            "  --python PY       interpreter for tools/session/score.py (default: $MD_PYTHON, the\n"
            "                    project venv, python3)\n"
@@ -82,6 +85,11 @@ static int cli_value(session_opts_t *o, const char *opt, const char *val, char *
         if (parse_double(val, &o->idle_s) != 0 || !(o->idle_s > 0.0)) {
             goto bad;
         }
+    } else if (strcmp(opt, "--pace") == 0) {
+        if (parse_u64(val, &u) != 0 || u > 10000000u) {
+            goto bad;
+        }
+        o->pace_fps = (uint32_t)u;
     } else if (strcmp(opt, "--bin-dir") == 0) {
         o->bin_dir = val;
     } else if (strcmp(opt, "--python") == 0) {
@@ -102,6 +110,7 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     o->bus = "auto";
     o->duration_s = -1.0;
     o->idle_s = 30.0;
+    o->pace_fps = 20000u;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {

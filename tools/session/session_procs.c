@@ -11,6 +11,7 @@
 #include <spawn.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -23,6 +24,12 @@ extern char **environ;
 #define PROCS_SLICE_US 50000
 #define PROCS_BOOT_WAIT_US 10000000u
 #define PROCS_TERM_WAIT_MS 3000
+/// The recorder's socket buffer: a 10 s interval is ~11 000 frames in a
+/// burst, and the recorder must lose none of them even on a loaded machine.
+#define PROCS_RCVBUF_BYTES (64 << 20)
+#ifndef SO_RCVBUFFORCE
+#define SO_RCVBUFFORCE 33   /* Linux; glibc hides it outside _GNU_SOURCE */
+#endif
 
 static md_bus_t g_rec;   /* must not move while open */
 
@@ -121,6 +128,11 @@ static int open_recorder(const session_opts_t *o, session_track_t *t, char *bus_
         md_bus_close(&g_rec);
         return -1;
     }
+    /* beyond rmem_max when allowed (root, or root of the test's namespace) */
+    const int fd = md_bus_fd(&g_rec), size = PROCS_RCVBUF_BYTES;
+    if (fd >= 0 && setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &size, sizeof size) != 0) {
+        (void)setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &size, sizeof size);
+    }
     fprintf(stderr, "microdrive-session: bus %s (%s)\n", bus_used, why);
     return 0;
 }
@@ -157,7 +169,8 @@ static session_end_t procs_start(const session_opts_t *o, session_track_t *t, co
                                  pid_t *sim)
 {
     static char fw_path[4096], sim_path[4096], fw_log[4096], sim_log[4096], truth[4096], seed[32];
-    static char bus_arg[64], scen[4096];
+    static char bus_arg[64], scen[4096], pace[32];
+    (void)snprintf(pace, sizeof pace, "%u", (unsigned)o->pace_fps);
     (void)snprintf(bus_arg, sizeof bus_arg, "%s", bus);
     (void)snprintf(scen, sizeof scen, "%s", o->scenario);
     (void)snprintf(fw_path, sizeof fw_path, "%s/microdrive-fw", o->bin_dir);
@@ -182,7 +195,7 @@ static session_end_t procs_start(const session_opts_t *o, session_track_t *t, co
         return SESSION_END_ERROR;
     }
     char *const sim_argv[] = {sim_path, "--scenario", scen, "--seed", seed, "--bus", bus_arg,
-                              "--truth", truth, "--duration-s", "0", NULL};
+                              "--truth", truth, "--duration-s", "0", "--pace", pace, NULL};
     *sim = spawn_logged(sim_argv, sim_log);
     return (*sim < 0) ? SESSION_END_ERROR : SESSION_END_GOAL;
 }
