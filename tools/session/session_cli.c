@@ -26,7 +26,7 @@ const char *session_cli_usage(void)
            "                    seconds in-process, wall seconds otherwise; default 30)\n"
            "  --pace FPS        socket bus: microdrive-sim sends at most FPS frames per wall second after\n"
            "                    a burst, so that the controller and the recorder lose none (default\n"
-           "                    20000; 0 = no cap); changes when frames go out, never what they are\n"
+           "                    10000; 0 = no cap); changes when frames go out, never what they are\n"
            "  --bin-dir DIR     where microdrive-sim and microdrive-fw are (default: next to this program)\n"
            "  --python PY       interpreter for tools/session/score.py (default: $MD_PYTHON, the\n"
            "                    project venv, python3)\n"
@@ -110,7 +110,7 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     o->bus = "auto";
     o->duration_s = -1.0;
     o->idle_s = 30.0;
-    o->pace_fps = 20000u;
+    o->pace_fps = 10000u;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
