@@ -58,6 +58,7 @@ typedef struct {
     char iface[16];              ///< interface column of the log
     bool quiet;
     bool log_samples;            ///< REC_DATA frames go to the log too (default)
+    bool stamp_sim;              ///< time stamps = simulated time (last SIM_CLOCK), not the caller's
     uint32_t electrodes;         ///< electrodes of the scenario
     session_goal_t goal;
     uint64_t frames;

@@ -148,6 +148,7 @@ static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label
             return SESSION_END_ERROR;
         }
         fprintf(stderr, "microdrive-session: bus inproc (simulator and controller in this process, virtual clock)\n");
+        track.stamp_sim = true;   /* the virtual clock stands still while the controller works */
         end = session_run_inproc(o, "inproc:session", &track, truth);
         (void)fclose(truth);
     } else {

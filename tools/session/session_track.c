@@ -81,10 +81,21 @@ static void track_heartbeat(session_track_t *t, const md_frame_t *f)
     }
 }
 
+static void track_clock(session_track_t *t, const md_frame_t *f)
+{
+    struct md_can_sim_clock_t c;
+    if ((f->flags & MD_FRAME_FLAG_EXT) == 0u && f->id == MD_CAN_SIM_CLOCK_FRAME_ID &&
+        f->len == MD_CAN_SIM_CLOCK_LENGTH && md_can_sim_clock_unpack(&c, f->data, f->len) == 0) {
+        t->sim_clock_us = c.sim_time_us;
+        t->clock_seen = true;
+    }
+}
+
 void session_track_frame(session_track_t *t, const md_frame_t *f, uint64_t stamp_us)
 {
     t->frames++;
-    track_log(t, f, stamp_us);
+    track_clock(t, f);
+    track_log(t, f, t->stamp_sim ? t->sim_clock_us : stamp_us);
     if ((f->flags & MD_FRAME_FLAG_EXT) != 0u) {
         return;
     }
@@ -94,14 +105,6 @@ void session_track_frame(session_track_t *t, const md_frame_t *f, uint64_t stamp
     }
     t->activity++;
     switch (f->id) {
-    case MD_CAN_SIM_CLOCK_FRAME_ID: {
-        struct md_can_sim_clock_t c;
-        if (f->len == MD_CAN_SIM_CLOCK_LENGTH && md_can_sim_clock_unpack(&c, f->data, f->len) == 0) {
-            t->sim_clock_us = c.sim_time_us;
-            t->clock_seen = true;
-        }
-        break;
-    }
     case MD_CAN_FE_INFO_FRAME_ID:
         if (f->len == MD_CAN_FE_INFO_LENGTH && f->data[0] < SESSION_MAX_ELECTRODES) {
             t->fe_info_mask |= 1u << f->data[0];
