@@ -81,26 +81,33 @@ def read_truth(path):
          "states": {}, "intervals": defaultdict(list)}
     pending_state = {}
     with open(path) as f:
-        for line in f:
-            line = line.strip()
-            if not line:
-                continue
+        lines = f.read().split("\n")
+    for k, line in enumerate(lines):
+        line = line.strip()
+        if not line:
+            continue
+        try:
             r = json.loads(line)
-            kind = r.get("type")
-            if kind == "session":
-                t["session"] = r
-            elif kind == "neuron":
-                t["neurons"][r["electrode"]][r["neuron"]] = r
-            elif kind == "spike":
-                t["spikes"][r["electrode"]].append((r["sample"], r["neuron"]))
-            elif kind == "death":
-                t["deaths"][r["electrode"]].append(r)
-            elif kind == "state":
-                pending_state[(r["label"], r["electrode"])] = r
-            elif kind == "interval":
-                e = r["electrode"]
-                r["state"] = pending_state.get((f"rec e{e} i{r['interval']}", e))
-                t["intervals"][e].append(r)
+        except json.JSONDecodeError:
+            if k >= len(lines) - 2:   # the simulator was stopped in the middle of its last line
+                t["truncated"] = True
+                continue
+            raise
+        kind = r.get("type")
+        if kind == "session":
+            t["session"] = r
+        elif kind == "neuron":
+            t["neurons"][r["electrode"]][r["neuron"]] = r
+        elif kind == "spike":
+            t["spikes"][r["electrode"]].append((r["sample"], r["neuron"]))
+        elif kind == "death":
+            t["deaths"][r["electrode"]].append(r)
+        elif kind == "state":
+            pending_state[(r["label"], r["electrode"])] = r
+        elif kind == "interval":
+            e = r["electrode"]
+            r["state"] = pending_state.get((f"rec e{e} i{r['interval']}", e))
+            t["intervals"][e].append(r)
     for e in t["spikes"]:
         t["spikes"][e].sort()
     return t

@@ -23,7 +23,7 @@ extern char **environ;
 
 #define PROCS_SLICE_US 50000
 #define PROCS_BOOT_WAIT_US 10000000u
-#define PROCS_TERM_WAIT_MS 3000
+#define PROCS_TERM_WAIT_MS 15000   /* a slow VM may be in the middle of a 10 s batch */
 /// The recorder's socket buffer: a 10 s interval is ~11 000 frames in a
 /// burst, and the recorder must lose none of them even on a loaded machine.
 #define PROCS_RCVBUF_BYTES (64 << 20)
