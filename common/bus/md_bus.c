@@ -9,6 +9,7 @@
 #include <string.h>
 #include <sys/socket.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <linux/sock_diag.h>
 
@@ -116,6 +117,44 @@ void md_bus_account_drops(md_bus_t *bus, struct msghdr *msg)
             note_drops(bus, total);
         }
     }
+}
+
+int md_bus_sock_receive(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us, md_bus_read_one_fn read_one)
+{
+    if (frame == NULL || timeout_us < 0) {
+        return -EINVAL;
+    }
+    const int64_t deadline_us = md_bus_now_us() + timeout_us;
+    for (unsigned discarded = 0; discarded < MD_BUS_RX_DISCARD_MAX;) {
+        const int r = read_one(bus, frame);
+        if (r == 1) {
+            bus->stats.rx_frames++;
+            return 1;
+        }
+        if (r < 0) {
+            return r;
+        }
+        if (r == 2) {
+            ++discarded;
+            continue;
+        }
+        md_bus_poll_drops(bus);
+        const int w = md_bus_wait_fd(bus->sock.fd, POLLIN, deadline_us);
+        if (w <= 0) {
+            return w;
+        }
+    }
+    return 0;
+}
+
+int md_bus_sock_fd(const md_bus_t *bus) { return bus->sock.fd; }
+
+void md_bus_sock_close(md_bus_t *bus)
+{
+    if (bus->sock.fd >= 0) {
+        (void)close(bus->sock.fd);
+    }
+    md_bus_set_closed(bus);
 }
 
 void md_bus_poll_drops(md_bus_t *bus)

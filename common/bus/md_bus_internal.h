@@ -45,6 +45,19 @@ void md_bus_poll_drops(md_bus_t *bus);
 /// for room. `to` may be NULL (connected/bound socket). Returns 0 or -errno.
 int md_bus_sock_send(int fd, const void *buf, size_t len, const struct sockaddr *to, socklen_t to_len);
 
+/// Reads at most one frame from a socket bus without blocking: 1 frame read,
+/// 0 queue empty, 2 datagram/frame discarded (own echo, malformed), -errno.
+typedef int (*md_bus_read_one_fn)(md_bus_t *bus, md_frame_t *frame);
+
+/// The receive operation of every socket bus: reads with `read_one` until a
+/// frame arrives, at most MD_BUS_RX_DISCARD_MAX are discarded, or timeout_us
+/// passes (polling the socket between reads). Same returns as md_bus_ops_t.receive.
+int md_bus_sock_receive(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us, md_bus_read_one_fn read_one);
+
+/// fd and close operations shared by the socket buses.
+int md_bus_sock_fd(const md_bus_t *bus);
+void md_bus_sock_close(md_bus_t *bus);
+
 int md_bus_open_socketcan(md_bus_t *bus, const char *ifname, char *why, size_t why_len);
 int md_bus_open_udp(md_bus_t *bus, uint16_t port, char *why, size_t why_len);
 int md_bus_open_inproc(md_bus_t *bus, const char *name, char *why, size_t why_len);

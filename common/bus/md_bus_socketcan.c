@@ -114,43 +114,10 @@ static int can_read_one(md_bus_t *bus, md_frame_t *frame)
 
 static int can_receive(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us)
 {
-    if (frame == NULL || timeout_us < 0) {
-        return -EINVAL;
-    }
-    const int64_t deadline_us = md_bus_now_us() + timeout_us;
-    for (unsigned discarded = 0; discarded < MD_BUS_RX_DISCARD_MAX;) {
-        const int r = can_read_one(bus, frame);
-        if (r == 1) {
-            bus->stats.rx_frames++;
-            return 1;
-        }
-        if (r < 0) {
-            return r;
-        }
-        if (r == 2) {
-            ++discarded;
-            continue;
-        }
-        md_bus_poll_drops(bus);
-        const int w = md_bus_wait_fd(bus->sock.fd, POLLIN, deadline_us);
-        if (w <= 0) {
-            return w;
-        }
-    }
-    return 0;
+    return md_bus_sock_receive(bus, frame, timeout_us, can_read_one);
 }
 
-static int can_fd(const md_bus_t *bus) { return bus->sock.fd; }
-
-static void can_close(md_bus_t *bus)
-{
-    if (bus->sock.fd >= 0) {
-        (void)close(bus->sock.fd);
-    }
-    md_bus_set_closed(bus);
-}
-
-static const md_bus_ops_t can_ops = {can_send, can_receive, can_fd, can_close};
+static const md_bus_ops_t can_ops = {can_send, can_receive, md_bus_sock_fd, md_bus_sock_close};
 
 /// Interface checks with messages a user can act on. Returns 0 or -errno.
 static int check_interface(int fd, const char *ifname, int *ifindex, bool *fd_capable, char *why, size_t why_len)

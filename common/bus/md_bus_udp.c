@@ -88,43 +88,10 @@ static int udp_read_one(md_bus_t *bus, md_frame_t *frame)
 
 static int udp_receive(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us)
 {
-    if (frame == NULL || timeout_us < 0) {
-        return -EINVAL;
-    }
-    const int64_t deadline_us = md_bus_now_us() + timeout_us;
-    for (unsigned discarded = 0; discarded < MD_BUS_RX_DISCARD_MAX;) {
-        const int r = udp_read_one(bus, frame);
-        if (r == 1) {
-            bus->stats.rx_frames++;
-            return 1;
-        }
-        if (r < 0) {
-            return r;
-        }
-        if (r == 2) {
-            ++discarded;
-            continue;
-        }
-        md_bus_poll_drops(bus);
-        const int w = md_bus_wait_fd(bus->sock.fd, POLLIN, deadline_us);
-        if (w <= 0) {
-            return w;
-        }
-    }
-    return 0;
+    return md_bus_sock_receive(bus, frame, timeout_us, udp_read_one);
 }
 
-static int udp_fd(const md_bus_t *bus) { return bus->sock.fd; }
-
-static void udp_close(md_bus_t *bus)
-{
-    if (bus->sock.fd >= 0) {
-        (void)close(bus->sock.fd);
-    }
-    md_bus_set_closed(bus);
-}
-
-static const md_bus_ops_t udp_ops = {udp_send, udp_receive, udp_fd, udp_close};
+static const md_bus_ops_t udp_ops = {udp_send, udp_receive, md_bus_sock_fd, md_bus_sock_close};
 
 static int set_int(int fd, int level, int opt, int value)
 {
