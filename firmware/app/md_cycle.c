@@ -112,8 +112,16 @@ uint64_t md_cycle_time_us(const md_cycle_t *c, const md_node_t *node, uint64_t n
     return (c->lockstep) ? node->sim_time_us : now_us;
 }
 
+/* A lockstep wait not yet anchored to a SIM_CLOCK: no simulated time reaches it. */
+#define WAIT_SIM_UNANCHORED UINT64_MAX
+
 /* Lets duration_us pass: SIM_STEP in lockstep (the simulator closes it with
- * a SIM_CLOCK), the platform clock otherwise. */
+ * a SIM_CLOCK), the platform clock otherwise. In lockstep the wait starts
+ * from the first SIM_CLOCK received after the SIM_STEP, not from the clock
+ * known now: over a socket bus the SIM_CLOCK closing the previous batch may
+ * still be queued behind its REC_END / final ACT_STATUS, and a wait based on
+ * the older time would end at once on it. Until anchored, wait_wall_us (unused
+ * by SIM waits) holds the duration. */
 static void start_wait(md_cycle_t *c, md_node_t *node, uint32_t duration_us, uint64_t now_us)
 {
     c->timeout_wall_us = now_us + duration_us + ANSWER_MARGIN_US;
@@ -129,7 +137,8 @@ static void start_wait(md_cycle_t *c, md_node_t *node, uint32_t duration_us, uin
         m.token = ++c->sim_token;
         (void)md_node_send(node, MD_CAN_SIM_STEP_FRAME_ID, buf, md_can_sim_step_pack(buf, &m, sizeof buf), false);
         c->wait = MD_WAIT_SIM;
-        c->wait_sim_us = node->sim_time_us + duration_us;
+        c->wait_sim_us = WAIT_SIM_UNANCHORED;
+        c->wait_wall_us = duration_us;
     } else {
         c->wait = MD_WAIT_WALL;
         c->wait_wall_us = now_us + duration_us;
@@ -460,6 +469,9 @@ void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool
         return; /* rejected frames change nothing (the node counted them) */
     }
     md_electrode_t *el = &c->el[c->active];
+    if (f->id == MD_CAN_SIM_CLOCK_FRAME_ID && c->wait == MD_WAIT_SIM && c->wait_sim_us == WAIT_SIM_UNANCHORED) {
+        c->wait_sim_us = node->sim_time_us + c->wait_wall_us; /* the SIM_STEP's time starts here */
+    }
     if (f->id == MD_CAN_SIM_CLOCK_FRAME_ID && el->phase == MD_CYC_RECORDING && !el->rec_clock_seen) {
         el->rec_clock_seen = true;
         if (c->lockstep) {

@@ -23,6 +23,10 @@
 /// flooded bus cannot starve the heartbeat and the supervision.
 #define RX_BURST 64
 
+/// Queued frames handed over at most before each poll (bounds the drain on a
+/// bus flooded faster than it is read; the queue of a socket is finite).
+#define RX_DRAIN_MAX 4096
+
 typedef struct {
     md_bus_t bus;
     uint64_t send_failures;
@@ -167,11 +171,36 @@ static void install_signals(void)
     (void)sigaction(SIGTERM, &sa, NULL);
 }
 
-/* The platform loop: poll, then wait for a frame until the next deadline. */
+/* Hands every frame already queued on the bus to the controller (receive
+ * with a zero timeout until none is left, at most RX_DRAIN_MAX), so that the
+ * supervision after a long processing step sees the heartbeats that arrived
+ * meanwhile instead of reporting them lost. */
+static void drain(md_controller_t *ctl, posix_port_ctx_t *pc, uint64_t *bus_errors)
+{
+    for (int k = 0; k < RX_DRAIN_MAX && g_stop == 0; ++k) {
+        md_frame_t frame;
+        const int r = md_bus_receive(&pc->bus, &frame, 0);
+        if (r == 1) {
+            md_controller_on_frame(ctl, &frame, mono_us()); /* rejections are counted by the node */
+            continue;
+        }
+        if (r < 0) {
+            (*bus_errors)++;
+            if (*bus_errors <= 10u) {
+                (void)fprintf(stderr, "microdrive-fw: receive failed: %s\n", strerror(-r));
+            }
+        }
+        return;
+    }
+}
+
+/* The platform loop: drain the queue, poll, then wait for a frame until the
+ * next deadline. */
 static int run(md_controller_t *ctl, posix_port_ctx_t *pc)
 {
     uint64_t bus_errors = 0u;
     while (g_stop == 0) {
+        drain(ctl, pc, &bus_errors);
         md_controller_poll(ctl, mono_us()); /* failures are counted by the node */
         for (int burst = 0; burst < RX_BURST && g_stop == 0; ++burst) {
             const uint64_t now = mono_us();
