@@ -34,7 +34,7 @@
 #define FUZZ_PCA_TRACE_BUG_OPEN 1
 #endif
 
-/* Open finding 2 (docs/fuzzing.md, crashes/fuzz_pca/identical_waveforms_*):
+/* Open finding (docs/fuzzing.md, crashes/fuzz_pca/identical_waveforms_*):
  * identical waveforms give MD_OK with a trace made of rounding error instead
  * of MD_E_DEGENERATE. Tolerated while 1: a success whose trace is below the
  * rounding floor of the data, (1e-12 · max|x|)^2 · d_w, is not checked. */
