@@ -304,7 +304,7 @@ static md_status_t do_boot(md_node_t *node, uint64_t now_us)
     /* CANopen boot-up: one heartbeat with state 0, then pre-operational. */
     const md_status_t st = send_heartbeat(node, now_us);
     const bool auto_start = md_params_get_u32(&node->params, MD_P_AUTO_START) != 0u;
-    node->state = (auto_start && !node->estop_latched) ? MD_NODE_STATE_OPERATIONAL : MD_NODE_STATE_PREOP;
+    enter_state(node, (auto_start && !node->estop_latched) ? MD_NODE_STATE_OPERATIONAL : MD_NODE_STATE_PREOP);
     node->next_heartbeat_us =
         now_us + (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_PERIOD_MS) * US_PER_MS;
     return st;
@@ -330,6 +330,16 @@ static void latch_estop(md_node_t *node, uint8_t source, uint8_t reason)
 
 static void apply_nmt(md_node_t *node, uint8_t command)
 {
+    /* Until its boot-up heartbeat is out (first poll) the node is initialising
+     * and, as in CANopen, takes no state command: a start applied now would be
+     * overwritten by do_boot without a halt (found by fuzz_node). Reset and
+     * clear-e-stop stay valid. */
+    const bool state_command = command == (uint8_t)MD_NMT_START || command == (uint8_t)MD_NMT_STOP ||
+                               command == (uint8_t)MD_NMT_PREOP;
+    if (node->boot_pending && state_command) {
+        node->counters.nmt_refused++;
+        return;
+    }
     switch ((md_nmt_command_t)command) {
     case MD_NMT_START:
         if (node->estop_latched) {

@@ -240,6 +240,25 @@ static void test_heartbeat_period_parameter_applies(void)
     TEST_ASSERT_EQUAL_size_t(4u, count_id(MD_CAN_HEARTBEAT_CTRL_FRAME_ID, from));
 }
 
+/* Regression (fuzz_node, tests/fuzz/crashes/fuzz_node): an NMT start that
+ * arrives after init but before the first poll used to make the node
+ * operational, let it step, and then be overwritten by the boot-up without a
+ * halt. The initialising node now refuses state commands. */
+static void test_nmt_start_before_bootup_is_refused(void)
+{
+    const uint32_t refused = g_node.counters.nmt_refused;
+    TEST_ASSERT_EQUAL_INT(MD_OK, nmt((uint8_t)MD_NMT_START, 0u));
+    TEST_ASSERT_EQUAL_UINT(refused + 1u, g_node.counters.nmt_refused);
+    TEST_ASSERT_TRUE(g_node.state != MD_NODE_STATE_OPERATIONAL);
+    TEST_ASSERT_TRUE(md_node_step(&g_node, 0u, MD_ACT_DIR_ADVANCE, 10u, 100u) < 0);
+    TEST_ASSERT_EQUAL_UINT(0u, count_id(MD_CAN_ACT_CMD_FRAME_ID, 0u));
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_node_poll(&g_node, g_now));
+    const md_frame_t *hb = last_of(MD_CAN_HEARTBEAT_CTRL_FRAME_ID);
+    TEST_ASSERT_NOT_NULL(hb);
+    TEST_ASSERT_EQUAL_UINT(MD_NODE_STATE_BOOT, hb->data[0]); /* the boot-up says "boot", not "operational" */
+    TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_PREOP, g_node.state);
+}
+
 static void test_nmt_transitions(void)
 {
     boot();
@@ -757,6 +776,7 @@ int main(void)
     RUN_TEST(test_boot_up_heartbeat_then_preop);
     RUN_TEST(test_heartbeat_period_and_content);
     RUN_TEST(test_heartbeat_period_parameter_applies);
+    RUN_TEST(test_nmt_start_before_bootup_is_refused);
     RUN_TEST(test_nmt_transitions);
     RUN_TEST(test_leaving_operational_halts_every_electrode);
     RUN_TEST(test_reset_node_reboots_with_defaults);
