@@ -18,6 +18,8 @@
 
 #define ARRIVE_US 2000000
 #define ABSENT_US 50000
+#define BUS_TEST_PATTERN 37u
+#include "bus_test_frames.h"
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -27,35 +29,6 @@ static void open_can(md_bus_t *bus, const char *spec)
     char why[200] = "";
     TEST_ASSERT_EQUAL_INT_MESSAGE(0, md_bus_open(bus, spec, why, sizeof why), why);
     TEST_ASSERT_EQUAL_INT(MD_BUS_SOCKETCAN, bus->kind);
-}
-
-static md_frame_t make_frame(uint32_t id, uint8_t len, uint8_t flags, uint8_t seed)
-{
-    md_frame_t f;
-    memset(&f, 0, sizeof f);
-    f.id = id;
-    f.len = len;
-    f.flags = flags;
-    for (uint8_t i = 0; i < len; ++i) {
-        f.data[i] = (uint8_t)(seed ^ (i * 37u));
-    }
-    return f;
-}
-
-static void expect_frame(md_bus_t *bus, const md_frame_t *e)
-{
-    md_frame_t r;
-    TEST_ASSERT_EQUAL_INT(1, md_bus_receive(bus, &r, ARRIVE_US));
-    TEST_ASSERT_EQUAL_UINT32(e->id, r.id);
-    TEST_ASSERT_EQUAL_UINT8(e->len, r.len);
-    TEST_ASSERT_EQUAL_UINT8(e->flags, r.flags);
-    TEST_ASSERT_EQUAL_MEMORY(e->data, r.data, e->len);
-}
-
-static void expect_nothing(md_bus_t *bus)
-{
-    md_frame_t r;
-    TEST_ASSERT_EQUAL_INT(0, md_bus_receive(bus, &r, ABSENT_US));
 }
 
 static void run(const char *cmd)

@@ -20,6 +20,8 @@
 
 #define ARRIVE_US 2000000   // generous upper bound; returns as soon as the frame is there
 #define ABSENT_US 50000     // loopback delivers in microseconds; 50 ms of silence means "not sent"
+#define BUS_TEST_PATTERN 29u
+#include "bus_test_frames.h"
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -28,35 +30,6 @@ static void open_udp(md_bus_t *bus, const char *spec)
 {
     char why[160] = "";
     TEST_ASSERT_EQUAL_INT_MESSAGE(0, md_bus_open(bus, spec, why, sizeof why), why);
-}
-
-static md_frame_t make_frame(uint32_t id, uint8_t len, uint8_t flags, uint8_t seed)
-{
-    md_frame_t f;
-    memset(&f, 0, sizeof f);
-    f.id = id;
-    f.len = len;
-    f.flags = flags;
-    for (uint8_t i = 0; i < len; ++i) {
-        f.data[i] = (uint8_t)(seed ^ (i * 29u));
-    }
-    return f;
-}
-
-static void expect_frame(md_bus_t *bus, const md_frame_t *e)
-{
-    md_frame_t r;
-    TEST_ASSERT_EQUAL_INT(1, md_bus_receive(bus, &r, ARRIVE_US));
-    TEST_ASSERT_EQUAL_UINT32(e->id, r.id);
-    TEST_ASSERT_EQUAL_UINT8(e->len, r.len);
-    TEST_ASSERT_EQUAL_UINT8(e->flags, r.flags);
-    TEST_ASSERT_EQUAL_MEMORY(e->data, r.data, e->len);
-}
-
-static void expect_nothing(md_bus_t *bus)
-{
-    md_frame_t r;
-    TEST_ASSERT_EQUAL_INT(0, md_bus_receive(bus, &r, ABSENT_US));
 }
 
 /// A plain UDP socket that can send anything to the bus's group, with the
