@@ -56,7 +56,7 @@ static void servo_cfg_from(const md_params_t *p, md_servo_config_t *cfg)
 
 static void mhtc_cfg_from(const md_params_t *p, mhtc_config_t *cfg)
 {
-    mhtc_config_default(cfg, MHTC_TRACKER_MHTC);
+    mhtc_config_default(cfg, md_process_tracker(p));
     const double q = md_params_get(p, MD_P_MHTC_Q_UV);
     cfg->q_process = q * q; /* µV² per waveform sample and interval (§4.4.2) */
     cfg->init_var = q * q;
@@ -74,8 +74,17 @@ static void apply_params(md_electrode_t *el, const md_node_t *node)
     md_servo_config_t vc;
     servo_cfg_from(&node->params, &vc);
     (void)md_servo_configure(&el->servo, &vc);
-    const double q = md_params_get(&node->params, MD_P_MHTC_Q_UV);
-    el->mhtc.cfg.q_process = q * q;
+    mhtc_config_t mc;
+    mhtc_cfg_from(&node->params, &mc);
+    if (mc.tracker != el->mhtc.cfg.tracker) {
+        /* Another tracker (a CONFIG parameter: set only while not operational)
+         * starts from no tracks; the curves were keyed by the old IDs. */
+        if (mhtc_init(&el->mhtc, &mc) == MD_OK) {
+            sc_table_init(&el->curves);
+        }
+        return;
+    }
+    el->mhtc.cfg.q_process = mc.q_process;
 }
 
 md_status_t md_cycle_init(md_cycle_t *c, const md_node_t *node)

@@ -623,6 +623,7 @@ double md_node_param_read(const md_node_t *node, md_param_id_t id, uint64_t now_
     case MD_P_SFSM_SNR_DROP:
     case MD_P_SC_TOL_UM:
     case MD_P_MHTC_Q_UV:
+    case MD_P_TRACKER:
         return md_params_get(&node->params, id);
     case MD_P_COUNT:
     default:

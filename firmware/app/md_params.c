@@ -72,6 +72,8 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                         "SNR-curve optimiser: eq. 2.1 step below this counts as converged"},
     [MD_P_MHTC_Q_UV] = {0x2040u, "mhtc_q_uv", "uV", 0.01, 1000.0, 10.0, MD_PARAM_F_CONFIG,
                         "MHTC process noise std per waveform sample and interval"},
+    [MD_P_TRACKER] = {0x2041u, "tracker", "", 0.0, 3.0, 0.0, MD_PARAM_F_CONFIG | MD_PARAM_F_INTEGER,
+                      "tracker: 0 MHTC, 1 MAP-NN, 2 ML-NN, 3 GNN baseline (a change restarts the tracks)"},
     [MD_P_NODE_STATE] = {0x3000u, "node_state", "", 0.0, 255.0, 0.0, RO_LIVE, "NMT state (HEARTBEAT NodeState)"},
     [MD_P_ESTOP_LATCHED] = {0x3001u, "estop_latched", "", 0.0, 1.0, 0.0, RO_LIVE, "1 while the e-stop is latched"},
     [MD_P_UPTIME_S] = {0x3002u, "uptime_s", "s", 0.0, U32_MAX_D, 0.0, RO_LIVE, "seconds since power-on"},

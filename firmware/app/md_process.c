@@ -10,6 +10,18 @@
 #define D MD_CYCLE_D
 #define SNIPPET_CANDIDATES_PER_WANTED 4u /* spike_extract.h: spacing for four candidates per wanted snippet */
 
+mhtc_tracker_t md_process_tracker(const md_params_t *p)
+{
+    /* Baselines of thesis §4.5 behind the MHTC interface: the cycle, SNR and
+     * isolation below read the same mhtc_result_t whichever tracker runs. */
+    switch (md_params_get_u32(p, MD_P_TRACKER)) {
+    case 1u: return MHTC_TRACKER_MAP_NN;
+    case 2u: return MHTC_TRACKER_ML_NN;
+    case 3u: return MHTC_TRACKER_GNN;
+    default: return MHTC_TRACKER_MHTC;
+    }
+}
+
 md_status_t md_process_begin(md_workspace_t *ws, const md_electrode_t *el, uint32_t num_samples)
 {
     if (ws == NULL || el == NULL || !el->fe_info || el->sample_rate_hz == 0u || !(el->gain_uv > 0.0) ||

@@ -28,6 +28,10 @@ typedef struct {
     double iqm;                 ///< its isolation distance ID_g (sqrt), 0 if undefined
 } md_process_out_t;
 
+/// Tracker selected by the `tracker` parameter (0 MHTC, 1 MAP-NN, 2 ML-NN,
+/// 3 GNN); a value outside the table's range falls back to MHTC. O(1).
+mhtc_tracker_t md_process_tracker(const md_params_t *p);
+
 /// Prepares the shared channel for an interval of `num_samples` of electrode
 /// `el` (its FE_INFO sample rate and gain). MD_E_ARG if FE_INFO is missing or
 /// a configuration is rejected. O(scales · box).

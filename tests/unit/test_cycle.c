@@ -7,6 +7,7 @@
 
 #include "md_can.h"
 #include "md_controller.h"
+#include "md_process.h"
 #include "md_telemetry.h"
 #include "unity.h"
 
@@ -326,6 +327,32 @@ static void test_cycles_move_safely_with_telemetry(void)
     TEST_ASSERT_GREATER_THAN_UINT(0u, el->mhtc.interval);
 }
 
+/* The `tracker` parameter (0x2041) selects a baseline; the cycle applies it
+ * at the next cycle start with fresh tracks, and the loop still runs. */
+static void test_tracker_parameter_selects_baseline(void)
+{
+    boot();
+    md_controller_t *c = md_controller_instance();
+    md_node_t *n = md_controller_node(c);
+    TEST_ASSERT_EQUAL_INT(MHTC_TRACKER_MHTC, c->cycle.el[0].mhtc.cfg.tracker);
+    TEST_ASSERT_EQUAL_INT(MD_PARAM_OUT_OF_RANGE, md_params_set(&n->params, 0x2041u, 4.0));
+    TEST_ASSERT_EQUAL_INT(MD_PARAM_OUT_OF_RANGE, md_params_set(&n->params, 0x2041u, 1.5));
+    TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x2041u, 3.0)); /* GNN */
+    TEST_ASSERT_EQUAL_INT(MHTC_TRACKER_GNN, md_process_tracker(&n->params));
+    run(20u);
+    const md_electrode_t *el = &c->cycle.el[0];
+    TEST_ASSERT_EQUAL_INT(MHTC_TRACKER_GNN, el->mhtc.cfg.tracker);
+    TEST_ASSERT_GREATER_OR_EQUAL_UINT(2u, el->cycles);
+    TEST_ASSERT_EQUAL_UINT32(0u, el->skipped);
+    TEST_ASSERT_EQUAL_UINT32(el->cycles, el->mhtc.interval); /* every interval went to the baseline */
+    TEST_ASSERT_EQUAL_UINT32(0u, P.steps_unasked);
+    const mhtc_tracker_t want[4] = {MHTC_TRACKER_MHTC, MHTC_TRACKER_MAP_NN, MHTC_TRACKER_ML_NN, MHTC_TRACKER_GNN};
+    for (uint32_t v = 0u; v < 4u; ++v) {
+        n->params.value[MD_P_TRACKER] = (double)v;
+        TEST_ASSERT_EQUAL_INT(want[v], md_process_tracker(&n->params));
+    }
+}
+
 static void test_numeric_failure_keeps_state(void)
 {
     boot();
@@ -379,6 +406,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_cycles_move_safely_with_telemetry);
+    RUN_TEST(test_tracker_parameter_selects_baseline);
     RUN_TEST(test_numeric_failure_keeps_state);
     RUN_TEST(test_estop_stops_the_cycle);
     return UNITY_END();
