@@ -324,6 +324,7 @@ def main():
     ap.add_argument("log")
     ap.add_argument("--out", required=True, help="directory for the PNG files (the session folder)")
     ap.add_argument("--types", help="lcm-gen -p output dir (<build>/common/lcm/python); default: generate")
+    ap.add_argument("--quiet", action="store_true", help="do not print the files written")
     a = ap.parse_args()
     s = read_log(a.log, a.types)
     if not any(s[ch] for ch in ("MD_STATUS", "MD_TRACKS", "MD_HALL", "MD_ACTUATOR", "MD_TRUTH_STATE")):
@@ -332,7 +333,9 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     els = electrodes_of(s)
     for f in (plot_tracks_pc, plot_waveforms, plot_status, plot_hypotheses, plot_truth):
-        print(f(s, a.out, els))
+        path = f(s, a.out, els)
+        if not a.quiet:
+            print(path)
     return 0
 
 

@@ -6,8 +6,9 @@
 /// The parts: the options (session_cli.c), the recorder that writes every
 /// frame in candump -L format and follows the controller's telemetry for
 /// progress lines and the end of the session (session_track.c), the two
-/// runners (session_inproc.c, session_procs.c) and the scorer call
-/// (session_main.c -> tools/session/score.py).
+/// runners (session_inproc.c, session_procs.c), the scorer call
+/// (session_main.c -> tools/session/score.py) and the telemetry steps after it
+/// (session_main.c -> md-lcm-bridge --write-log, tools/plots/plot_session.py).
 #ifndef SESSION_H
 #define SESSION_H
 
@@ -16,9 +17,20 @@
 #include <stdio.h>
 
 #include "md_frame.h"
+#include "md_params.h"
 
 /// Electrodes a session follows at most (the simulator's limit).
 #define SESSION_MAX_ELECTRODES 8u
+
+/// --param NAME=VALUE options a session takes at most.
+#define SESSION_MAX_PARAMS 32u
+
+/// One controller parameter set before the session starts (--param).
+typedef struct {
+    const char *arg;             ///< "NAME=VALUE" as given (passed on to microdrive-fw)
+    uint16_t index;              ///< bus index of NAME (md_params table)
+    double value;
+} session_param_t;
 
 typedef enum { SESSION_BUS_INPROC = 0, SESSION_BUS_SOCKET = 1 } session_bus_mode_t;
 
@@ -37,6 +49,10 @@ typedef struct {
     bool no_score;               ///< --no-score: leave report.json out
     bool quiet;                  ///< --quiet: no progress lines
     bool no_sample_log;          ///< --no-sample-log: REC_DATA frames stay out of the log
+    bool no_lcm;                 ///< --no-lcm: no session.lcmlog (and therefore no plots)
+    bool no_plots;               ///< --no-plots: no PNG files
+    session_param_t params[SESSION_MAX_PARAMS];   ///< --param, in command-line order
+    uint32_t n_params;
     bool help;
 } session_opts_t;
 
@@ -44,6 +60,11 @@ typedef struct {
 int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg, size_t msglen);
 /// The --help text.
 const char *session_cli_usage(void);
+
+/// Applies the --param options to a controller's parameter table, in order,
+/// through md_params_set (same checks as a set over the bus). 0 ok; -1 with
+/// the refused one named in msg (nothing after it applied).
+int session_apply_params(md_params_t *p, const session_opts_t *o, char *msg, size_t msglen);
 
 /// When the session is over (per electrode, from the controller's telemetry).
 typedef struct {

@@ -5,20 +5,24 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "md_params.h"
 #include "session.h"
 
 const char *session_cli_usage(void)
 {
     return "usage: microdrive-session --scenario FILE [--seed N] [--bus auto|vcan0|udp|udp:PORT|IFACE|inproc]\n"
            "                          --out DIR [--cycles N | --duration-s S] [--idle-s S] [--pace FPS]\n"
-           "                          [--bin-dir DIR] [--python PY] [--no-score] [--no-sample-log]\n"
+           "                          [--bin-dir DIR] [--python PY] [--param NAME=VALUE]...\n"
+           "                          [--no-score] [--no-lcm] [--no-plots] [--no-sample-log]\n"
            "                          [--quiet] [--help]\n"
            "  --scenario FILE   simulator scenario (scenarios/*.yaml)\n"
            "  --seed N          seed of every random stream (default: the scenario's)\n"
            "  --bus SPEC        inproc: simulator + controller in this process, virtual clock, as fast\n"
            "                    as possible; vcan0/IFACE/udp: microdrive-sim and microdrive-fw as\n"
            "                    processes; auto (default): vcan0 if present, else udp\n"
-           "  --out DIR         candump.log (every frame), truth.jsonl, report.json [, sim.log, fw.log]\n"
+           "  --out DIR         candump.log (every frame), truth.jsonl, report.json, session.lcmlog,\n"
+           "                    tracks_pc.png waveforms.png status.png hypotheses.png truth.png\n"
+           "                    [, sim.log, fw.log]\n"
            "  --cycles N        end when every electrode has completed N cycles (TLM_STATUS)\n"
            "  --duration-s S    end when simulated time passed S and every interval begun before\n"
            "                    S is reported (default: the scenario's duration_s)\n"
@@ -30,12 +34,20 @@ const char *session_cli_usage(void)
            "  --bin-dir DIR     where microdrive-sim and microdrive-fw are (default: next to this program)\n"
            "  --python PY       interpreter for tools/session/score.py (default: $MD_PYTHON, the\n"
            "                    project venv, python3)\n"
+           "  --param NAME=VALUE  set a controller parameter before the start (repeatable; names and\n"
+           "                    ranges: microdrive-fw --params-markdown), e.g. --param tracker=1;\n"
+           "                    in-process applied to the controller, on a socket bus passed to\n"
+           "                    microdrive-fw --param\n"
            "  --no-score        no report.json\n"
+           "  --no-lcm          no session.lcmlog (md-lcm-bridge --write-log over candump.log and\n"
+           "                    truth.jsonl); implies --no-plots\n"
+           "  --no-plots        no PNG files (tools/plots/plot_session.py over session.lcmlog)\n"
            "  --no-sample-log   leave the REC_DATA frames (~1.7 MB per cycle) out of candump.log; the\n"
            "                    report does not need them\n"
            "  --quiet           no progress lines\n"
            "Progress: one line per electrode and cycle (TLM_STATUS). Exit: 0 goal reached, 4 ended idle\n"
-           "before the goal (report written), 1 runtime error, 2 usage.\n";
+           "before the goal (report written), 5 the session and its report are fine but the LCM log\n"
+           "or the plots failed (message above), 1 runtime error, 2 usage.\n";
 }
 
 static int parse_u64(const char *s, uint64_t *v)
@@ -56,6 +68,61 @@ static int parse_double(const char *s, double *v)
     errno = 0;
     *v = strtod(s, &end);
     return (errno != 0 || end == s || *end != '\0' || !(*v >= 0.0)) ? -1 : 0;
+}
+
+/* Dense id of the parameter called `name` (md_params table), or -1. */
+static int param_by_name(const char *name, size_t len)
+{
+    for (size_t i = 0u; i < md_params_count(); ++i) {
+        const md_param_def_t *d = md_params_def(i);
+        if (strlen(d->name) == len && strncmp(d->name, name, len) == 0) {
+            return (int)i;
+        }
+    }
+    return -1;
+}
+
+/* One --param NAME=VALUE: the name must exist and VALUE be a number; range
+ * and integrality are checked later by md_params_set. */
+static int cli_param(session_opts_t *o, const char *val, char *msg, size_t msglen)
+{
+    const char *eq = strchr(val, '=');
+    if (o->n_params >= SESSION_MAX_PARAMS) {
+        (void)snprintf(msg, msglen, "--param: more than %u", (unsigned)SESSION_MAX_PARAMS);
+        return -1;
+    }
+    const int id = (eq == NULL) ? -1 : param_by_name(val, (size_t)(eq - val));
+    if (id < 0) {
+        (void)snprintf(msg, msglen, "--param '%s': no parameter of that name (NAME=VALUE; list: microdrive-fw "
+                                    "--params-markdown)", val);
+        return -1;
+    }
+    char *end = NULL;
+    errno = 0;
+    const double v = strtod(eq + 1, &end);
+    if (errno != 0 || end == eq + 1 || *end != '\0') {
+        (void)snprintf(msg, msglen, "--param '%s': not a number", val);
+        return -1;
+    }
+    session_param_t *p = &o->params[o->n_params++];
+    p->arg = val;
+    p->index = md_params_def((size_t)id)->index;
+    p->value = v;
+    return 0;
+}
+
+int session_apply_params(md_params_t *p, const session_opts_t *o, char *msg, size_t msglen)
+{
+    for (uint32_t i = 0u; i < o->n_params && i < SESSION_MAX_PARAMS; ++i) {
+        const md_param_status_t st = md_params_set(p, o->params[i].index, o->params[i].value);
+        if (st != MD_PARAM_OK) {
+            const md_param_def_t *d = md_params_def((size_t)md_params_find(o->params[i].index));
+            (void)snprintf(msg, msglen, "--param %s refused (status %d; range %g..%g%s)", o->params[i].arg,
+                           (int)st, d->min, d->max, ((d->flags & MD_PARAM_F_INTEGER) != 0u) ? ", whole number" : "");
+            return -1;
+        }
+    }
+    return 0;
 }
 
 static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen)
@@ -94,6 +161,8 @@ static int cli_value(session_opts_t *o, const char *opt, const char *val, char *
         o->bin_dir = val;
     } else if (strcmp(opt, "--python") == 0) {
         o->python = val;
+    } else if (strcmp(opt, "--param") == 0) {
+        return cli_param(o, val, msg, msglen);
     } else {
         (void)snprintf(msg, msglen, "unknown option '%s'", opt);
         return -1;
@@ -122,6 +191,10 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
             o->quiet = true;
         } else if (strcmp(a, "--no-sample-log") == 0) {
             o->no_sample_log = true;
+        } else if (strcmp(a, "--no-lcm") == 0) {
+            o->no_lcm = true;
+        } else if (strcmp(a, "--no-plots") == 0) {
+            o->no_plots = true;
         } else if (i + 1 >= argc || strncmp(a, "--", 2) != 0) {
             (void)snprintf(msg, msglen, "'%s' needs a value or is not an option", a);
             return -1;
@@ -137,5 +210,11 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
         (void)snprintf(msg, msglen, "give --cycles or --duration-s, not both");
         return -1;
     }
-    return 0;
+    /* every --param against a fresh table now, so a bad one stops nothing half-started */
+    md_params_t scratch;
+    if (md_params_init(&scratch) != MD_OK) {
+        (void)snprintf(msg, msglen, "the controller's parameter table is inconsistent");
+        return -1;
+    }
+    return session_apply_params(&scratch, o, msg, msglen);
 }

@@ -140,7 +140,7 @@ static int open_endpoints(inproc_t *ip, const char *spec)
     return 0;
 }
 
-static int start_nodes(inproc_t *ip, simnode_world_t *world)
+static int start_nodes(inproc_t *ip, simnode_world_t *world, const session_opts_t *o)
 {
     const md_port_t port = {ctrl_send, ctrl_now, ip};
     ip->ctrl = md_controller_instance();
@@ -150,6 +150,11 @@ static int start_nodes(inproc_t *ip, simnode_world_t *world)
     }
     /* as microdrive-fw --auto-start */
     (void)md_params_set(&md_controller_node(ip->ctrl)->params, md_params_def(MD_P_AUTO_START)->index, 1.0);
+    char why[200];   /* --param NAME=VALUE, checked at parse time, applied here before the start */
+    if (session_apply_params(&md_controller_node(ip->ctrl)->params, o, why, sizeof why) != 0) {
+        fprintf(stderr, "microdrive-session: %s\n", why);
+        return -1;
+    }
     simnode_plant_cfg_t cfg;
     simnode_plant_cfg_default(&cfg);
     const simnode_sink_t sink = {plant_sink, ip};
@@ -216,7 +221,7 @@ session_end_t session_run_inproc(const session_opts_t *o, const char *resolved_b
     }
     simnode_world_set_truth(world, truth);
     session_end_t end = SESSION_END_ERROR;
-    if (open_endpoints(ip, resolved_bus) == 0 && start_nodes(ip, world) == 0) {
+    if (open_endpoints(ip, resolved_bus) == 0 && start_nodes(ip, world, o) == 0) {
         end = inproc_loop(ip, (uint64_t)(o->idle_s * 1e6));
     }
     md_bus_close(&ip->rec_ep);

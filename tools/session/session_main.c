@@ -1,8 +1,10 @@
 /// @file session_main.c
 /// microdrive-session: starts the simulator and the controller, records every
-/// frame, shows progress per cycle, and scores the session against the
-/// simulator's ground truth (tools/session/score.py -> report.json).
-/// Design and report format: docs/session.md.
+/// frame, shows progress per cycle, scores the session against the
+/// simulator's ground truth (tools/session/score.py -> report.json), writes
+/// the session's LCM log (md-lcm-bridge --write-log -> session.lcmlog) and
+/// plots it (tools/plots/plot_session.py -> *.png).
+/// Design and report format: docs/session.md; telemetry: docs/telemetry.md.
 #include <errno.h>
 #include <inttypes.h>
 #include <libgen.h>
@@ -26,7 +28,16 @@
 #define MD_SESSION_SCORER "score.py"
 #endif
 
+#ifndef MD_SESSION_PLOTTER
+#define MD_SESSION_PLOTTER "plot_session.py"
+#endif
+#ifndef MD_SESSION_LCM_TYPES
+#define MD_SESSION_LCM_TYPES ""
+#endif
+
 #define SESSION_EXIT_IDLE 4
+/// The session and its report are fine, but its LCM log or plots are not.
+#define SESSION_EXIT_TELEMETRY 5
 
 volatile int session_stop_signal = 0;
 
@@ -83,6 +94,94 @@ static const char *pick_python(const session_opts_t *o)
     return (access(MD_SESSION_PYTHON, X_OK) == 0) ? MD_SESSION_PYTHON : "python3";
 }
 
+/* Runs argv (argv[0] through PATH); returns its exit status, -1 if it died
+ * by a signal or could not be waited for, 127 if it could not be started. */
+static int run_child(char *const argv[])
+{
+    (void)fflush(stdout);
+    (void)fflush(stderr);
+    const pid_t pid = fork();
+    if (pid == 0) {
+        execvp(argv[0], argv);
+        fprintf(stderr, "microdrive-session: cannot run %s: %s\n", argv[0], strerror(errno));
+        _exit(127);
+    }
+    int status = 0;
+    if (pid < 0 || waitpid(pid, &status, 0) != pid) {
+        return -1;
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/* Path from the environment variable `env` if set, else `def`. */
+static void env_or(char *out, size_t len, const char *env, const char *def)
+{
+    const char *v = getenv(env);
+    (void)snprintf(out, len, "%s", (v != NULL && v[0] != '\0') ? v : def);
+}
+
+/* DIR/session.lcmlog from DIR/candump.log and DIR/truth.jsonl: the bridge in
+ * log mode writes the same LCM event log lcm-logger would record from a live
+ * bridge, byte-identical on every run, for both bus kinds (docs/telemetry.md). */
+static int run_bridge(const session_opts_t *o)
+{
+    static char bridge[PATH_MAX], def[PATH_MAX], log[PATH_MAX], truth[PATH_MAX], out[PATH_MAX];
+    (void)snprintf(def, sizeof def, "%s/md-lcm-bridge", o->bin_dir);
+    env_or(bridge, sizeof bridge, "MD_SESSION_BRIDGE", def);
+    (void)snprintf(log, sizeof log, "%s/candump.log", o->out);
+    (void)snprintf(truth, sizeof truth, "%s/truth.jsonl", o->out);
+    (void)snprintf(out, sizeof out, "%s/session.lcmlog", o->out);
+    if (access(bridge, X_OK) != 0) {
+        fprintf(stderr, "microdrive-session: LCM log: no %s (built only with libcjson-dev; --no-lcm to skip)\n",
+                bridge);
+        return -1;
+    }
+    char *const argv[] = {bridge, "--from-log", log, "--truth", truth, "--write-log", out, "--quiet", NULL};
+    return run_child(argv);
+}
+
+/* The PNG files of DIR from DIR/session.lcmlog. */
+static int run_plots(const session_opts_t *o)
+{
+    static char py[PATH_MAX], plotter[PATH_MAX], log[PATH_MAX], out[PATH_MAX], types[PATH_MAX];
+    (void)snprintf(py, sizeof py, "%s", pick_python(o));
+    env_or(plotter, sizeof plotter, "MD_SESSION_PLOTTER", MD_SESSION_PLOTTER);
+    env_or(types, sizeof types, "MD_LCM_TYPES", MD_SESSION_LCM_TYPES);
+    (void)snprintf(log, sizeof log, "%s/session.lcmlog", o->out);
+    (void)snprintf(out, sizeof out, "%s", o->out);
+    char *const with_types[] = {py, plotter, log, "--out", out, "--types", types, "--quiet", NULL};
+    char *const without[] = {py, plotter, log, "--out", out, "--quiet", NULL};
+    return run_child(types[0] != '\0' ? with_types : without);
+}
+
+/* The LCM log, then the plots; each failure named. 0 ok, -1 one failed. */
+static int run_telemetry(const session_opts_t *o)
+{
+    if (o->no_lcm) {
+        if (!o->no_plots) {
+            fprintf(stderr, "microdrive-session: no plots: they are drawn from session.lcmlog (--no-lcm)\n");
+        }
+        return 0;
+    }
+    const int b = run_bridge(o);
+    if (b != 0) {
+        fprintf(stderr, "microdrive-session: LCM log failed: md-lcm-bridge exit %d; %s/session.lcmlog is not valid\n",
+                b, o->out);
+        return -1;
+    }
+    fprintf(stderr, "microdrive-session: LCM log %s/session.lcmlog\n", o->out);
+    if (o->no_plots) {
+        return 0;
+    }
+    const int p = run_plots(o);
+    if (p != 0) {
+        fprintf(stderr, "microdrive-session: plots failed: plot_session.py exit %d\n", p);
+        return -1;
+    }
+    fprintf(stderr, "microdrive-session: plots %s/{tracks_pc,waveforms,status,hypotheses,truth}.png\n", o->out);
+    return 0;
+}
+
 /* Runs score.py; returns its exit status (0 ok). */
 static int run_scorer(const session_opts_t *o, const char *bus_label, const char *end_name)
 {
@@ -107,18 +206,7 @@ static int run_scorer(const session_opts_t *o, const char *bus_label, const char
     char *const argv[] = {py, scorer, "--log", log, "--truth", truth, "--out", report, "--scenario", scen,
                           "--seed", seed, "--bus", bus, "--end", end,
                           o->cycles > 0u ? "--cycles" : "--duration-s", goal, NULL};
-    (void)fflush(stdout);
-    const pid_t pid = fork();
-    if (pid == 0) {
-        execvp(py, argv);
-        fprintf(stderr, "microdrive-session: cannot run %s: %s\n", py, strerror(errno));
-        _exit(127);
-    }
-    int status = 0;
-    if (pid < 0 || waitpid(pid, &status, 0) != pid) {
-        return -1;
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return run_child(argv);
 }
 
 static bool bus_is_inproc(const char *bus) { return strcmp(bus, "inproc") == 0 || strncmp(bus, "inproc:", 7) == 0; }
@@ -202,6 +290,9 @@ int main(int argc, char *argv[])
     if (!o.no_score && run_scorer(&o, bus_label, end == SESSION_END_GOAL ? "goal" : "idle") != 0) {
         fprintf(stderr, "microdrive-session: scoring failed\n");
         return 1;
+    }
+    if (run_telemetry(&o) != 0) {
+        return SESSION_EXIT_TELEMETRY;
     }
     return (end == SESSION_END_GOAL) ? 0 : SESSION_EXIT_IDLE;
 }

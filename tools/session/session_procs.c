@@ -179,7 +179,16 @@ static session_end_t procs_start(const session_opts_t *o, session_track_t *t, co
     (void)snprintf(sim_log, sizeof sim_log, "%s/sim.log", o->out);
     (void)snprintf(truth, sizeof truth, "%s/truth.jsonl", o->out);
     (void)snprintf(seed, sizeof seed, "%" PRIu64, o->seed);
-    char *const fw_argv[] = {fw_path, "--bus", bus_arg, "--auto-start", NULL};
+    /* --param NAME=VALUE goes to microdrive-fw, which applies it before the start */
+    static char params[SESSION_MAX_PARAMS][128];
+    char *fw_argv[5u + 2u * SESSION_MAX_PARAMS] = {fw_path, "--bus", bus_arg, "--auto-start"};
+    size_t n = 4u;
+    for (uint32_t i = 0u; i < o->n_params && i < SESSION_MAX_PARAMS; ++i) {
+        (void)snprintf(params[i], sizeof params[i], "%s", o->params[i].arg);
+        fw_argv[n++] = "--param";
+        fw_argv[n++] = params[i];
+    }
+    fw_argv[n] = NULL;
     *fw = spawn_logged(fw_argv, fw_log);
     if (*fw < 0) {
         return SESSION_END_ERROR;

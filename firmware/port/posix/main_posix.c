@@ -67,12 +67,14 @@ static void usage(FILE *out)
 {
     (void)fprintf(out,
                   "usage: microdrive-fw [--bus SPEC] [--heartbeat-ms N] [--heartbeat-timeout-ms N]\n"
-                  "                     [--auto-start] [--params-markdown] [--help]\n"
+                  "                     [--auto-start] [--param NAME=VALUE]... [--params-markdown] [--help]\n"
                   "  --bus SPEC               auto (default: vcan0 if present, else udp), udp, udp:PORT,\n"
                   "                           vcan0/can0/<ifname>, inproc:NAME\n"
                   "  --heartbeat-ms N         heartbeat period (parameter 0x1017)\n"
                   "  --heartbeat-timeout-ms N heartbeat consumer timeout (parameter 0x1016)\n"
                   "  --auto-start             go operational after boot (parameter 0x1F80)\n"
+                  "  --param NAME=VALUE       set parameter NAME (see --params-markdown) before the start, with\n"
+                  "                           the checks of a set over the bus; repeatable, applied in order\n"
                   "  --params-markdown        print the parameter table (docs/protocol.md) and exit\n"
                   "SIGINT/SIGTERM end the process cleanly.\n");
 }
@@ -113,12 +115,33 @@ static void print_params_markdown(void)
     }
 }
 
+/// --param options taken at most.
+#define MAX_PARAM_OPTS 32
+
 typedef struct {
     const char *bus_spec;
     const char *heartbeat_ms;
     const char *heartbeat_timeout_ms;
     int auto_start;
+    const char *param[MAX_PARAM_OPTS];   /* "NAME=VALUE" */
+    int n_param;
 } options_t;
+
+/* Applies one --param NAME=VALUE: NAME looked up in the parameter table. */
+static int set_named_param(md_node_t *node, const char *arg)
+{
+    const char *eq = strchr(arg, '=');
+    const size_t len = (eq == NULL) ? 0u : (size_t)(eq - arg);
+    for (size_t i = 0u; i < md_params_count() && len > 0u; ++i) {
+        const md_param_def_t *d = md_params_def(i);
+        if (strlen(d->name) == len && strncmp(d->name, arg, len) == 0) {
+            return set_param(node, d->index, eq + 1, arg);
+        }
+    }
+    (void)fprintf(stderr, "microdrive-fw: --param '%s': no parameter of that name (NAME=VALUE; see "
+                          "--params-markdown)\n", arg);
+    return -1;
+}
 
 /* 0: run; 1: exit 0 (help, markdown); -1: usage error. */
 static int parse_options(int argc, char **argv, options_t *o)
@@ -127,6 +150,7 @@ static int parse_options(int argc, char **argv, options_t *o)
         {"bus", required_argument, NULL, 'b'},          {"heartbeat-ms", required_argument, NULL, 'h'},
         {"heartbeat-timeout-ms", required_argument, NULL, 't'}, {"auto-start", no_argument, NULL, 'a'},
         {"params-markdown", no_argument, NULL, 'm'},    {"help", no_argument, NULL, 'H'},
+        {"param", required_argument, NULL, 'p'},
         {NULL, 0, NULL, 0}};
     for (int guard = 0; guard < argc + 1; ++guard) {
         const int c = getopt_long(argc, argv, "", LONG_OPTS, NULL);
@@ -136,6 +160,13 @@ static int parse_options(int argc, char **argv, options_t *o)
         case 'h': o->heartbeat_ms = optarg; break;
         case 't': o->heartbeat_timeout_ms = optarg; break;
         case 'a': o->auto_start = 1; break;
+        case 'p':
+            if (o->n_param >= MAX_PARAM_OPTS) {
+                (void)fprintf(stderr, "microdrive-fw: more than %d --param\n", MAX_PARAM_OPTS);
+                return -1;
+            }
+            o->param[o->n_param++] = optarg;
+            break;
         case 'm': print_params_markdown(); return 1;
         case 'H': usage(stdout); return 1;
         default: return -1;
@@ -157,6 +188,11 @@ static int configure(md_node_t *node, const options_t *o)
     }
     if (o->auto_start != 0 && set_param(node, md_params_def(MD_P_AUTO_START)->index, "1", "--auto-start") != 0) {
         return -1;
+    }
+    for (int i = 0; i < o->n_param && i < MAX_PARAM_OPTS; ++i) {
+        if (set_named_param(node, o->param[i]) != 0) {
+            return -1;
+        }
     }
     return 0;
 }
@@ -247,7 +283,7 @@ int main(int argc, char **argv)
     md_controller_t *ctl = md_controller_instance(); /* the controller's whole state: static, no heap */
     md_node_t *node = md_controller_node(ctl);
     static posix_port_ctx_t port_ctx;
-    options_t opt = {"auto", NULL, NULL, 0};
+    static options_t opt = {"auto", NULL, NULL, 0, {NULL}, 0};
     const int parsed = parse_options(argc, argv, &opt);
     if (parsed != 0) {
         if (parsed < 0) {
