@@ -24,7 +24,7 @@
  * leaves log_post = NaN in the result. Tolerated while 1 for models whose fit
  * failed (never for usable ones); set to 0 once failed fits carry no NaN. */
 #ifndef FUZZ_CLUSTER_NAN_FAILED_FIT_OPEN
-#define FUZZ_CLUSTER_NAN_FAILED_FIT_OPEN 1
+#define FUZZ_CLUSTER_NAN_FAILED_FIT_OPEN 0
 #endif
 
 static double g_points[FZ_N_CAP * EM_D_MAX];

@@ -1,6 +1,7 @@
 /* Unit: em — MAP-EM of thesis §3.3.3 on synthetic mixtures with known answers:
  * recovery of means/weights/volume, the fixed point is a stationary point of
  * the log-posterior, eq. 3.15 holds at convergence, degenerate inputs. */
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -194,6 +195,56 @@ static void test_degenerate_and_bad_inputs(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_fit(&s.data, &s.outlier, &s.prior, seed, 1u, &opt, z, &fit));
 }
 
+/* docs/fuzzing.md finding 4: a finite target mean near -DBL_MAX made the
+ * Mahalanobis distance inf - inf = NaN inside the triangular solve, the prior
+ * term NaN, and a failed fit kept that NaN in log_post. The far target now has
+ * density 0 (ζ = 0), and a failed fit carries no NaN (log_lik = log_post = 0,
+ * n_soft = 0). */
+static void test_far_target_and_failed_fit_leave_no_nan(void)
+{
+    setup_t s;
+    em_options_t opt;
+    em_fit_t fit;
+    em_target_t tg[2];
+    memset(tg, 0, sizeof tg);
+    tg[0].mean[0] = -DBL_MAX;
+    tg[0].mean[1] = -DBL_MAX;
+    tg[0].s_cov[0] = tg[0].s_cov[3] = 0.25;
+    tg[0].s_cov[1] = tg[0].s_cov[2] = 0.2; /* L = [0.5 0; 0.4 0.3]: forward solve does inf - inf */
+    tg[0].cluster_cov[0] = tg[0].cluster_cov[3] = 1.0;
+    tg[0].p_detect = 0.9;
+    tg[1] = tg[0];
+    tg[1].mean[0] = -3.5;
+    tg[1].mean[1] = 3.2;
+    prepare(make_two(4u), tg, 2u, &s);
+    double zeta[EM_J_MAX + 1u];
+    const double far_mu[2] = {DBL_MAX, DBL_MAX};
+    const double lp = em_prior_log_mean(&s.prior, far_mu, zeta);
+    TEST_ASSERT_TRUE(isfinite(lp));
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, zeta[1]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1.0, zeta[0] + zeta[1] + zeta[2]);
+    const double nan_mu[2] = {NAN, 1.0};
+    TEST_ASSERT_FALSE(isnan(em_prior_log_mean(&s.prior, nan_mu, zeta)));
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, zeta[0] + zeta[1] + zeta[2]);
+    em_options_default(&opt);
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_fit(&s.data, &s.outlier, &s.prior, seed, 2u, &opt, z, &fit));
+    TEST_ASSERT_TRUE(isfinite(fit.log_post) && isfinite(fit.log_lik));
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, fit.zeta[0][1]);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, fit.zeta[1][1]);
+    /* a fit that fails after iterating (5 seed points for a second cluster
+     * among uniform outliers: its soft count drops below d + 2) */
+    for (size_t i = 0u; i < 270u; ++i) {
+        seed[i] = (i >= 250u && i < 255u) ? 1u : 0u;
+    }
+    const md_status_t st = em_fit(&s.data, &s.outlier, &s.prior, seed, 2u, &opt, z, &fit);
+    TEST_ASSERT_TRUE((st != MD_OK) && (st != MD_E_NOCONVERGE));
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, fit.log_post);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, fit.log_lik);
+    for (size_t g = 0u; g <= EM_G_MAX; ++g) {
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, fit.n_soft[g]);
+    }
+}
+
 static void test_labels_argmax(void)
 {
     const double zz[6] = {0.1, 0.7, 0.2, 0.6, 0.3, 0.1};
@@ -210,6 +261,7 @@ int main(void)
     RUN_TEST(test_fixed_point_is_stationary);
     RUN_TEST(test_map_mean_obeys_eq_3_15);
     RUN_TEST(test_degenerate_and_bad_inputs);
+    RUN_TEST(test_far_target_and_failed_fit_leave_no_nan);
     RUN_TEST(test_labels_argmax);
     return UNITY_END();
 }

@@ -29,6 +29,14 @@ static md_status_t em_fail(em_fit_t *out, md_status_t st, em_reason_t reason)
 {
     out->status = st;
     out->reason = reason;
+    if ((st != MD_OK) && (st != MD_E_NOCONVERGE)) {
+        /* A failed fit has no likelihood: clear what the loop may have left
+         * non-finite, so no NaN leaves em_fit (docs/fuzzing.md finding 4). */
+        out->log_lik = 0.0;
+        out->log_post = 0.0;
+        memset(out->n_soft, 0, sizeof out->n_soft);
+        memset(out->zeta, 0, sizeof out->zeta);
+    }
     return st;
 }
 

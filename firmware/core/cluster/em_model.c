@@ -119,13 +119,22 @@ md_status_t em_prior_init(size_t d, const em_target_t *targets, size_t n_targets
 
 double em_prior_log_mean(const em_prior_t *prior, const double *mu, double *zeta)
 {
+    if (!linalg_all_finite(mu, prior->d)) {
+        if (zeta != NULL) {
+            memset(zeta, 0, (prior->n_targets + 1u) * sizeof(double));
+        }
+        return -HUGE_VAL; /* no density for a non-finite mean; the caller's isfinite check fails the fit */
+    }
     double lw[EM_J_MAX + 1u];
     double lse = prior->log_w0_over_v;
     lw[0] = lse;
     for (size_t j = 0u; j < prior->n_targets; ++j) {
         double work[EM_D_MAX];
         const double m2 = linalg_mahalanobis2(prior->s_chol[j], prior->d, mu, prior->mean[j], work);
-        lw[j + 1u] = prior->log_w_norm[j] - 0.5 * m2; /* eq. 3.8, j-th Gaussian term */
+        /* eq. 3.8, j-th Gaussian term. A finite mean and target so far apart that
+         * the distance overflows (inf, or inf - inf = NaN in the solve) have a
+         * density of 0 under this term: weight -inf, never NaN. */
+        lw[j + 1u] = isfinite(m2) ? (prior->log_w_norm[j] - 0.5 * m2) : -HUGE_VAL;
         lse = em_logaddexp(lse, lw[j + 1u]);
     }
     if (zeta != NULL) {

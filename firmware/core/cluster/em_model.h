@@ -130,6 +130,8 @@ md_status_t em_prior_init(size_t d, const em_target_t *targets, size_t n_targets
                           double volume, em_prior_t *out);
 
 /// log p(μ) of eq. 3.8; when zeta is non-NULL it receives ζ_j, j = 0..J (eq. 3.14).
+/// Never NaN: a target whose Mahalanobis distance to μ overflows contributes
+/// weight 0; a non-finite μ gives -inf (and ζ = 0). O(J d^2).
 double em_prior_log_mean(const em_prior_t *prior, const double *mu, double *zeta);
 
 /// log N(y | μ, Σ) given the Cholesky factor L of Σ and log det Σ (eq. 3.1).
