@@ -26,6 +26,7 @@ from lcm_session import SFSM_STATES, read_log  # noqa: E402
 
 MATCH_TOL_S = 0.0005  # a detection matches a true spike within 0.5 ms
 MAX_LEGEND = 10       # more tracks than this: IDs only at the trajectories' ends, no legend
+MAX_NEURONS = 4       # truth panels: the neurons with the highest true SNR at this electrode
 MAX_ROWS = 12         # matrix rows / waveform panels: the tracks with the most data, the rest pooled
 
 
@@ -33,8 +34,45 @@ def minutes(utime):
     return utime / 60e6
 
 
-def track_color(track_id):
-    return plt.get_cmap("tab10")(track_id % 10)
+def track_color(track_id, ids=None):
+    """Colour of a track: distinct among the tracks `ids` of one electrode (tab10, then tab20), so that two
+    track IDs never share a colour in one panel (T1 and T11 did with id % 10)."""
+    ids = sorted(ids) if ids else [track_id]
+    k = ids.index(track_id) if track_id in ids else track_id
+    return plt.get_cmap("tab10")(k % 10) if len(ids) <= 10 else plt.get_cmap("tab20")(k % 20)
+
+
+def caption(fig, text):
+    """A caption under the panels saying what the figure shows and how to read it."""
+    fig.text(0.01, 0.005, text, ha="left", va="bottom", fontsize=8, wrap=True, color="0.25")
+
+
+def common_basis(waves):
+    """PC1/PC2 of one electrode's track mean waveforms (all tracks, all cycles): a basis shared by the whole
+    session, so a track's trajectory is comparable across intervals. The controller's own PCA basis is refit
+    every interval (eq. 3.1 on that interval's spikes) and its axes may flip sign from one interval to the
+    next, which makes the per-interval means jump. Returns (centre, 2 x n basis) or None."""
+    rows = [w for ws in waves.values() for _, w, _ in ws]
+    if len(rows) < 2:
+        return None
+    n = max(len(w) for w in rows)
+    x = np.zeros((len(rows), n))
+    for i, w in enumerate(rows):
+        x[i, :len(w)] = w
+    centre = x.mean(axis=0)
+    _, _, vt = np.linalg.svd(x - centre, full_matrices=False)
+    basis = vt[:2] if vt.shape[0] >= 2 else np.vstack([vt, np.zeros((1, n))])
+    for k in range(basis.shape[0]):      # sign convention: the trough (most negative sample) loads positively
+        if basis[k, int(np.argmin(centre))] < 0:
+            basis[k] = -basis[k]
+    return centre, basis
+
+
+def project(w, cb):
+    centre, basis = cb
+    x = np.zeros(len(centre))
+    x[:min(len(w), len(x))] = w[:len(x)]
+    return basis @ (x - centre)
 
 
 def electrodes_of(s):
@@ -70,40 +108,60 @@ def new_figure(rows, cols, w=5.0, h=3.4):
 
 def save(fig, out, name, title):
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.06, 1, 1))   # room for the caption
     path = os.path.join(out, name)
     fig.savefig(path, dpi=90)
     plt.close(fig)
     return path
 
 
-def plot_tracks_pc(s, out, els):
-    fig, ax = new_figure(len(els), 3)
+def plot_tracks_pc(s, out, els, label=""):
+    fig, ax = new_figure(len(els), 4, w=4.6, h=3.4)
     for r, e in enumerate(els):
+        waves = track_waves(s, e)
+        cb = common_basis(waves)
         hist = track_history(s, e)
-        labelled = set(sorted(hist, key=lambda t: -len(hist[t]))[:MAX_ROWS])  # IDs of the longest tracks
-        for tid, rows in sorted(hist.items()):
-            a = np.array(rows)
-            c = track_color(tid)
-            det, miss = a[:, 3] == 0, a[:, 3] > 0
-            ax[r, 0].plot(a[:, 1], a[:, 2], "-", color=c, lw=0.8)
-            ax[r, 0].plot(a[det, 1], a[det, 2], "o", color=c, ms=3)
-            ax[r, 0].plot(a[miss, 1], a[miss, 2], "x", color="k", ms=6, mew=1.5)
-            if tid in labelled:
-                ax[r, 0].annotate(f"T{tid}", (a[-1, 1], a[-1, 2]), xytext=(4, 4), textcoords="offset points",
-                                  color=c)
-            for col, dim in ((1, 1), (2, 2)):
-                ax[r, col].plot(a[:, 0], a[:, dim], "-", color=c, lw=0.8, label=f"T{tid}")
-                ax[r, col].plot(a[det, 0], a[det, dim], "o", color=c, ms=3)
-                ax[r, col].plot(a[miss, 0], a[miss, dim], "x", color="k", ms=6, mew=1.5)
-        ax[r, 0].set(xlabel="PC1", ylabel="PC2", title=f"electrode {e}: track means (x = missed)")
+        ids = sorted(set(hist) | set(waves))
+        labelled = set(sorted(ids, key=lambda t: -len(hist.get(t, [])))[:MAX_ROWS])  # IDs of the longest tracks
+        for tid in ids:
+            c = track_color(tid, ids)
+            if cb is not None and tid in waves:
+                a = np.array([(t, *project(w, cb), miss) for t, w, miss in waves[tid]])
+                det, miss = a[:, 3] == 0, a[:, 3] > 0
+                ax[r, 0].plot(a[:, 1], a[:, 2], "-", color=c, lw=0.8)
+                ax[r, 0].plot(a[det, 1], a[det, 2], "o", color=c, ms=3)
+                ax[r, 0].plot(a[miss, 1], a[miss, 2], "x", color="k", ms=6, mew=1.5)
+                for col, dim in ((1, 1), (2, 2)):
+                    ax[r, col].plot(a[:, 0], a[:, dim], "-", color=c, lw=0.8, label=f"T{tid}")
+                    ax[r, col].plot(a[det, 0], a[det, dim], "o", color=c, ms=3)
+                    ax[r, col].plot(a[miss, 0], a[miss, dim], "x", color="k", ms=6, mew=1.5)
+                    if tid in labelled:
+                        ax[r, col].annotate(f"T{tid}", (a[0, 0], a[0, dim]), xytext=(-4, 4), ha="right",
+                                            textcoords="offset points", color=c, fontsize=8)
+                if tid in labelled:
+                    ax[r, 0].annotate(f"T{tid}", (a[-1, 1], a[-1, 2]), xytext=(4, 4), textcoords="offset points",
+                                      color=c)
+            if tid in hist:
+                h = np.array(hist[tid])
+                det, miss = h[:, 3] == 0, h[:, 3] > 0
+                ax[r, 3].plot(h[det, 0], h[det, 1], "o", color=c, ms=3, label=f"T{tid}")
+                ax[r, 3].plot(h[miss, 0], h[miss, 1], "x", color="k", ms=6, mew=1.5)
+        ax[r, 0].set(xlabel="PC1 (session basis)", ylabel="PC2 (session basis)",
+                     title=f"electrode {e}: track means, PC1-PC2")
         ax[r, 1].set(xlabel="time (min)", ylabel="PC1", title=f"electrode {e}: PC1 over time")
         ax[r, 2].set(xlabel="time (min)", ylabel="PC2", title=f"electrode {e}: PC2 over time")
-        if 0 < len(hist) <= MAX_LEGEND:
-            ax[r, 1].legend(fontsize=7, loc="best")
-        else:
+        ax[r, 3].set(xlabel="time (min)", ylabel="PC1 (interval basis)",
+                     title=f"electrode {e}: PC1 as the tracker saw it")
+        if not ids:
             ax[r, 0].text(0.5, 0.5, "no tracks", ha="center", transform=ax[r, 0].transAxes)
-    return save(fig, out, "tracks_pc.png", "Tracks in each interval's PCA space (PC1/PC2)")
+        elif len(ids) <= MAX_LEGEND:
+            ax[r, 1].legend(fontsize=7, loc="best")
+    caption(fig, "Track means of the leading hypothesis, one colour per track ID; o = detected in that interval, "
+                 "x = missed detection (the track lives on its prediction). Columns 1-3: the tracks' mean waveforms "
+                 "projected on one PCA basis per electrode fitted to all of them (comparable across intervals). "
+                 "Column 4: PC1 of the track mean in each interval's own PCA basis, as the tracker used it (the "
+                 "basis is refit every interval and may flip sign).")
+    return save(fig, out, "tracks_pc.png", f"{label}Tracks in PC1/PC2 over time, IDs and missed detections")
 
 
 def sample_rate(s):
@@ -112,7 +170,7 @@ def sample_rate(s):
 
 
 def track_waves(s, e):
-    """{track id: list of (t_min, wave)}, trailing samples that are zero in every cycle of a track
+    """{track id: list of (t_min, wave, missed)}, trailing samples that are zero in every cycle of a track
     removed (TLM_WAVE parts are padded to 28 samples)."""
     waves = {}
     for m in s["MD_TRACKS"]:
@@ -120,25 +178,25 @@ def track_waves(s, e):
             continue
         for k in range(m.num_tracks):
             if m.wave_samples[k] > 0:
-                waves.setdefault(m.track_id[k], []).append((minutes(m.utime),
-                                                            np.array(m.mean_wave_uv[k][:m.wave_samples[k]])))
+                waves.setdefault(m.track_id[k], []).append(
+                    (minutes(m.utime), np.array(m.mean_wave_uv[k][:m.wave_samples[k]]), m.missed[k] > 0))
     for tid, rows in waves.items():
-        n = max(len(w) for _, w in rows)
+        n = max(len(w) for _, w, _ in rows)
         stack = np.zeros((len(rows), n))
-        for i, (_, w) in enumerate(rows):
+        for i, (_, w, _) in enumerate(rows):
             stack[i, :len(w)] = w
         nz = np.nonzero(np.any(stack != 0, axis=0))[0]
         keep = int(nz[-1]) + 1 if len(nz) else n
-        waves[tid] = [(t, w[:keep]) for t, w in rows]
+        waves[tid] = [(t, w[:keep], miss) for t, w, miss in rows]
     return waves
 
 
-def plot_waveforms(s, out, els):
+def plot_waveforms(s, out, els, label=""):
     per_el = {e: track_waves(s, e) for e in els}
     cols = max(1, min(6, max(len(v) for v in per_el.values())))
     fig, ax = new_figure(len(els), cols, w=3.6, h=3.0)
     fs = sample_rate(s)
-    cmap = plt.get_cmap("viridis")
+    cmap = plt.get_cmap("viridis_r")   # yellow = early, purple = late
     for r, e in enumerate(els):
         # the tracks followed for the most cycles, in id order
         items = sorted(sorted(per_el[e].items(), key=lambda kv: -len(kv[1]))[:cols])
@@ -148,15 +206,20 @@ def plot_waveforms(s, out, els):
                 a.axis("off")
                 continue
             tid, rows = items[c]
-            for i, (_, w) in enumerate(rows):
+            for i, (_, w, _) in enumerate(rows):
                 x = np.arange(len(w)) * (1e3 / fs if fs > 0 else 1.0)
                 a.plot(x, w, color=cmap(i / max(1, len(rows) - 1)), lw=0.8)
             a.plot(x, rows[-1][1], color="k", lw=1.6)
-            a.set(title=f"e{e} T{tid}: {len(rows)} cycles", xlabel="ms" if fs > 0 else "sample", ylabel="uV")
+            missed = sum(1 for _, _, miss in rows if miss)
+            a.set(title=f"e{e} T{tid}: {len(rows)} cycles ({missed} missed)", xlabel="ms" if fs > 0 else "sample",
+                  ylabel="uV")
         if not items:
             ax[r, 0].axis("on")
             ax[r, 0].text(0.5, 0.5, f"electrode {e}: no waveforms", ha="center", transform=ax[r, 0].transAxes)
-    return save(fig, out, "waveforms.png", "Mean waveform per track (light = early cycles, black = last)")
+    caption(fig, "Mean waveform of each track (the tracks followed for the most cycles, at most 6 per electrode), "
+                 "one curve per cycle it lived: yellow = early, purple = late, black = its last cycle; the title "
+                 "counts the cycles in which the track was missed.")
+    return save(fig, out, "waveforms.png", f"{label}Mean waveform per track over the session")
 
 
 def series(msgs, e, *fields):
@@ -164,7 +227,7 @@ def series(msgs, e, *fields):
     return np.array(rows) if rows else np.zeros((0, 1 + len(fields)))
 
 
-def plot_status(s, out, els):
+def plot_status(s, out, els, label=""):
     fig, ax = new_figure(3, len(els), w=5.2, h=3.0)
     for c, e in enumerate(els):
         st = series(s["MD_STATUS"], e, "sfsm_state", "snr", "iqm", "depth_um", "target_depth_um")
@@ -189,10 +252,13 @@ def plot_status(s, out, els):
         ax[2, c].invert_yaxis()
         ax[2, c].set(title=f"electrode {e}: depth", xlabel="time (min)", ylabel="depth (um)")
         ax[2, c].legend(fontsize=7)
-    return save(fig, out, "status.png", "Controller status per electrode")
+    caption(fig, "Per electrode (column), from TLM_STATUS once per cycle: the SFSM state; SNR and IQM (isolation "
+                 "quality, ID_g) of the dominant track; the controller's depth and target depth against the "
+                 "calibrated Hall depth (grey) and the simulator's true tip (dotted). Depth grows downwards.")
+    return save(fig, out, "status.png", f"{label}SFSM state, SNR, IQM and depth against time")
 
 
-def plot_hypotheses(s, out, els):
+def plot_hypotheses(s, out, els, label=""):
     fig, ax = new_figure(len(els), 2)
     for r, e in enumerate(els):
         msgs = [m for m in s["MD_HYPOTHESES"] if m.electrode == e]
@@ -214,7 +280,11 @@ def plot_hypotheses(s, out, els):
                                labels=[f"rank {k}" for k in range(n_rank)])
         ax[r, 1].set(title=f"electrode {e}: probability mass by rank", xlabel="time (min)", ylabel="P")
         ax[r, 1].set_ylim(bottom=0.0)  # the controller's P need not sum to 1 over ranks (eq. 4.30, Remark 4.3)
-    return save(fig, out, "hypotheses.png", "Hypothesis rank history")
+    caption(fig, "MHTC's global hypotheses after every cycle (TLM_HYP): log-probability of each rank (rank 0 = the "
+                 "leading hypothesis, bold) and the probability mass held by each rank. Mass spread over many "
+                 "ranks = an ambiguous interval that delayed decision making keeps open. Baseline trackers keep "
+                 "one hypothesis.")
+    return save(fig, out, "hypotheses.png", f"{label}Hypothesis rank history")
 
 
 def match_spikes(s, e):
@@ -261,14 +331,15 @@ def plot_matrix(a, counts, e):
         for j in range(len(neurons)):
             a.text(j, i, str(mat[i, j]), ha="center", va="center", fontsize=7,
                    color="w" if mat[i, j] > mat.max() / 2 else "k")
-    a.set_xticks(range(len(neurons)), [f"N{n}" if n is not None else "none" for n in neurons], fontsize=7)
+    a.set_xticks(range(len(neurons)), [("artifact" if n == -1 else f"N{n}") if n is not None else "none"
+                                       for n in neurons], fontsize=7)
     a.set_yticks(range(len(tracks)), [{-1: "outlier", -2: "unlabelled", -3: "other"}.get(t, f"T{t}") for t in tracks],
                  fontsize=7)
     a.set(title=f"electrode {e}: detections by track vs true neuron", xlabel="true neuron (0.5 ms)",
           ylabel="track label")
 
 
-def plot_truth(s, out, els):
+def plot_truth(s, out, els, label=""):
     fig, ax = new_figure(len(els), 3)
     have_truth = bool(s["MD_TRUTH_STATE"])
     deaths = s["MD_TRUTH_DEATH"]
@@ -279,13 +350,20 @@ def plot_truth(s, out, els):
             for k in range(m.num_neurons):
                 true_snr.setdefault(m.neuron[k], []).append((minutes(m.utime), m.snr[k]))
                 peak_depth.setdefault(m.neuron[k], []).append((minutes(m.utime), m.snr_peak_depth_um[k]))
+        # the neurons that matter here: the MAX_NEURONS with the highest true SNR (the rest stay near 0
+        # and only bury the labels)
+        top = set(sorted(true_snr, key=lambda n: -max(v for _, v in true_snr[n]))[:MAX_NEURONS])
+        true_snr = {n: v for n, v in true_snr.items() if n in top}
+        peak_depth = {n: v for n, v in peak_depth.items() if n in top}
         for nid, rows in sorted(true_snr.items()):
             a = np.array(rows)
             ax[r, 0].plot(a[:, 0], a[:, 1], "--", color="0.4", lw=1)
             ax[r, 0].annotate(f"N{nid} true", (a[-1, 0], a[-1, 1]), fontsize=7, color="0.3")
-        for tid, rows in sorted(track_history(s, e, at_interval_start=True).items()):
+        th = track_history(s, e, at_interval_start=True)
+        for tid, rows in sorted(th.items()):
             a = np.array(rows)
-            ax[r, 0].plot(a[:, 0], a[:, 4], "o-", ms=3, color=track_color(tid), label=f"T{tid}")
+            snr = np.where(a[:, 3] > 0, np.nan, a[:, 4])   # a missed cycle has no SNR: a gap, not a 0
+            ax[r, 0].plot(a[:, 0], snr, "o-", ms=3, color=track_color(tid, th), label=f"T{tid}")
         for d in deaths:
             if d.electrode == e:
                 ax[r, 0].axvline(minutes(d.utime), color="r", lw=1)
@@ -316,7 +394,11 @@ def plot_truth(s, out, els):
             ax[r, 2].text(0.5, 0.5, "no detected or true spikes", ha="center", transform=ax[r, 2].transAxes)
         if not have_truth:
             ax[r, 0].text(0.5, 0.5, "no ground truth in this log", ha="center", transform=ax[r, 0].transAxes)
-    return save(fig, out, "truth.png", "Tracks against the simulator's ground truth")
+    caption(fig, "Against the simulator's ground truth. Left: each track's SNR (gaps = missed) and every neuron's "
+                 "true SNR at the tip (dashed; the 4 strongest neurons), neuron deaths in red. Middle: controller depth, true tip and each "
+                 "neuron's SNR-peak depth. Right: detections counted by track label and the true neuron whose spike "
+                 "lies within 0.5 ms ('none' = no true spike: noise; 'artifact' = the simulator's artifacts).")
+    return save(fig, out, "truth.png", f"{label}Tracks against the simulator's ground truth")
 
 
 def main():
@@ -325,6 +407,7 @@ def main():
     ap.add_argument("--out", required=True, help="directory for the PNG files (the session folder)")
     ap.add_argument("--types", help="lcm-gen -p output dir (<build>/common/lcm/python); default: generate")
     ap.add_argument("--quiet", action="store_true", help="do not print the files written")
+    ap.add_argument("--label", default="", help="session name for the titles (e.g. 'single_neuron seed 1')")
     a = ap.parse_args()
     s = read_log(a.log, a.types)
     if not any(s[ch] for ch in ("MD_STATUS", "MD_TRACKS", "MD_HALL", "MD_ACTUATOR", "MD_TRUTH_STATE")):
@@ -333,7 +416,7 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     els = electrodes_of(s)
     for f in (plot_tracks_pc, plot_waveforms, plot_status, plot_hypotheses, plot_truth):
-        path = f(s, a.out, els)
+        path = f(s, a.out, els, f"{a.label}: " if a.label else "")
         if not a.quiet:
             print(path)
     return 0

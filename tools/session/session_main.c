@@ -143,14 +143,22 @@ static int run_bridge(const session_opts_t *o)
 /* The PNG files of DIR from DIR/session.lcmlog. */
 static int run_plots(const session_opts_t *o)
 {
-    static char py[PATH_MAX], plotter[PATH_MAX], log[PATH_MAX], out[PATH_MAX], types[PATH_MAX];
+    static char py[PATH_MAX], plotter[PATH_MAX], log[PATH_MAX], out[PATH_MAX], types[PATH_MAX], label[PATH_MAX];
+    static char scen[PATH_MAX];
+    (void)snprintf(scen, sizeof scen, "%s", o->scenario);
+    char *base = basename(scen);
+    char *dot = strrchr(base, '.');
+    if (dot != NULL && dot != base) {
+        *dot = '\0';
+    }
+    (void)snprintf(label, sizeof label, "%s seed %" PRIu64, base, o->seed);
     (void)snprintf(py, sizeof py, "%s", pick_python(o));
     env_or(plotter, sizeof plotter, "MD_SESSION_PLOTTER", MD_SESSION_PLOTTER);
     env_or(types, sizeof types, "MD_LCM_TYPES", MD_SESSION_LCM_TYPES);
     (void)snprintf(log, sizeof log, "%s/session.lcmlog", o->out);
     (void)snprintf(out, sizeof out, "%s", o->out);
-    char *const with_types[] = {py, plotter, log, "--out", out, "--types", types, "--quiet", NULL};
-    char *const without[] = {py, plotter, log, "--out", out, "--quiet", NULL};
+    char *const with_types[] = {py, plotter, log, "--out", out, "--label", label, "--types", types, "--quiet", NULL};
+    char *const without[] = {py, plotter, log, "--out", out, "--label", label, "--quiet", NULL};
     return run_child(types[0] != '\0' ? with_types : without);
 }
 
