@@ -83,7 +83,8 @@ static md_status_t cluster_prepare(const cluster_config_t *cfg, const cluster_in
     if (em_bounding_volume(&in->data, &volume) != MD_OK) {
         return cluster_fail_all(out, cfg->g_max, MD_E_DEGENERATE, EM_FAIL_ZERO_VOLUME);
     }
-    if (em_outlier_init(in->data.d, in->noise_cov, volume, &ws->outlier) != MD_OK) {
+    if ((em_outlier_init(in->data.d, in->noise_cov, volume, &ws->outlier) != MD_OK) ||
+        (em_outlier_tabulate(&ws->outlier, &in->data) != MD_OK)) {
         return cluster_fail_all(out, cfg->g_max, MD_E_NUMERIC, EM_FAIL_NOISE_COV);
     }
     const size_t j = (cfg->method == CLUSTER_MAP) ? in->n_targets : 0u;

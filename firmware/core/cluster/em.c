@@ -13,9 +13,47 @@
 /* Per-component factors of Σ_g = λ C_g used by the E-step and eq. 3.15. */
 typedef struct {
     double chol[EM_G_MAX][EM_D_MAX * EM_D_MAX];
+    double linv[EM_G_MAX][EM_D_MAX * EM_D_MAX]; /* L^{-1}, lower triangular */
     double inv[EM_G_MAX][EM_D_MAX * EM_D_MAX];
     double logdet[EM_G_MAX];
+    double log_norm[EM_G_MAX];                  /* -½ (d log 2π + log det Σ_g) of eq. 3.1 */
 } em_cache_t;
+
+#define EM_LOG_2PI 1.8378770664093454836
+
+/* L^{-1} of a lower-triangular L with positive diagonal (column by column forward substitution). */
+static void em_tri_inverse(const double *l, size_t d, double *li)
+{
+    memset(li, 0, d * d * sizeof(double));
+    for (size_t c = 0u; c < d; ++c) {
+        li[c * d + c] = 1.0 / l[c * d + c];
+        for (size_t r = c + 1u; r < d; ++r) {
+            double s = 0.0;
+            for (size_t q = c; q < r; ++q) {
+                s += l[r * d + q] * li[q * d + c];
+            }
+            li[r * d + c] = -s / l[r * d + r];
+        }
+    }
+}
+
+/* (y - μ)^T Σ^{-1} (y - μ) = |L^{-1}(y - μ)|^2: multiplies only, no division per point. */
+static double em_quad_tri(const double *li, size_t d, const double *y, const double *mu)
+{
+    double r[EM_D_MAX];
+    for (size_t j = 0u; j < d; ++j) {
+        r[j] = y[j] - mu[j];
+    }
+    double m2 = 0.0;
+    for (size_t a = 0u; a < d; ++a) {
+        double w = 0.0;
+        for (size_t b = 0u; b <= a; ++b) {
+            w += li[a * d + b] * r[b];
+        }
+        m2 += w * w;
+    }
+    return m2;
+}
 
 void em_options_default(em_options_t *opt)
 {
@@ -61,30 +99,45 @@ static md_status_t em_build_cache(const em_params_t *p, em_cache_t *c)
             return MD_E_NUMERIC;
         }
         c->logdet[g] = linalg_cholesky_logdet(c->chol[g], d);
+        c->log_norm[g] = -0.5 * ((double)d * EM_LOG_2PI + c->logdet[g]);
+        em_tri_inverse(c->chol[g], d, c->linv[g]);
     }
     return MD_OK;
 }
 
-/* E-step: z_ig (after eq. 3.13) in the log domain; returns log p(Y|Θ) (eq. 3.5). */
+/* E-step: z_ig (after eq. 3.13) in the log domain; returns log p(Y|Θ) (eq. 3.5).
+ * One log-sum-exp per point about its largest term: G + 1 exp and one log per
+ * point; the log-weights log π_g are taken once per iteration. */
 static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
                        const em_cache_t *c, double *z)
 {
     const size_t k = p->g + 1u;
+    double log_pi[EM_G_MAX + 1u];
+    log_pi[0] = em_safe_log(p->pi0);
+    for (size_t g = 0u; g < p->g; ++g) {
+        log_pi[g + 1u] = em_safe_log(p->pi[g]);
+    }
     double loglik = 0.0;
     for (size_t i = 0u; i < data->n; ++i) {
         const double *y = &data->y[i * data->d];
         double *zi = &z[i * k];
-        zi[0] = em_safe_log(p->pi0) + em_outlier_logpdf(outlier, y);
-        double lse = zi[0];
+        zi[0] = log_pi[0] + em_outlier_logpdf_at(outlier, data, i);
+        double hi = zi[0];
         for (size_t g = 0u; g < p->g; ++g) {
-            zi[g + 1u] = em_safe_log(p->pi[g]) + em_log_gauss(c->chol[g], c->logdet[g], data->d, y,
-                                                              p->mean[g]);
-            lse = em_logaddexp(lse, zi[g + 1u]);
+            /* eq. 3.1 */
+            zi[g + 1u] = log_pi[g + 1u] + c->log_norm[g] - 0.5 * em_quad_tri(c->linv[g], data->d, y, p->mean[g]);
+            hi = (zi[g + 1u] > hi) ? zi[g + 1u] : hi;
         }
+        double sum = 0.0;
         for (size_t g = 0u; g < k; ++g) {
-            zi[g] = exp(zi[g] - lse);
+            zi[g] = exp(zi[g] - hi); /* the largest term is exactly 1: sum >= 1 */
+            sum += zi[g];
         }
-        loglik += lse;
+        const double inv = 1.0 / sum;
+        for (size_t g = 0u; g < k; ++g) {
+            zi[g] *= inv;
+        }
+        loglik += hi + log(sum);
     }
     return loglik;
 }

@@ -65,6 +65,32 @@ double em_outlier_logpdf(const em_outlier_t *outlier, const double *y)
     return log(0.5) + em_logaddexp(outlier->log_norm - 0.5 * m2, -outlier->log_volume);
 }
 
+md_status_t em_outlier_tabulate(em_outlier_t *outlier, const em_data_t *data)
+{
+    if (outlier == NULL) {
+        return MD_E_ARG;
+    }
+    outlier->tab_y = NULL;
+    outlier->tab_n = 0u;
+    if ((data == NULL) || (data->y == NULL) || (data->n > EM_N_MAX) || (data->d != outlier->d)) {
+        return MD_E_ARG;
+    }
+    for (size_t i = 0u; i < data->n; ++i) {
+        outlier->tab_log_f0[i] = em_outlier_logpdf(outlier, &data->y[i * data->d]);
+    }
+    outlier->tab_y = data->y;
+    outlier->tab_n = data->n;
+    return MD_OK;
+}
+
+double em_outlier_logpdf_at(const em_outlier_t *outlier, const em_data_t *data, size_t i)
+{
+    if ((outlier->tab_y == data->y) && (outlier->tab_n == data->n) && (i < data->n)) {
+        return outlier->tab_log_f0[i];
+    }
+    return em_outlier_logpdf(outlier, &data->y[i * data->d]);
+}
+
 double em_log_gauss(const double *l, double logdet, size_t d, const double *y, const double *mu)
 {
     double work[EM_D_MAX];

@@ -87,6 +87,9 @@ typedef struct {
     double log_volume;                 ///< log V of the bounding box
     double chol[EM_D_MAX * EM_D_MAX];  ///< Cholesky factor of K·Ξ
     double log_norm;                   ///< -½ (d log 2π + log det K·Ξ)
+    const double *tab_y;               ///< points tabulated by em_outlier_tabulate() (identity), or NULL
+    size_t tab_n;                      ///< number of tabulated points
+    double tab_log_f0[EM_N_MAX];       ///< log f0(y_i) of the tabulated points
 } em_outlier_t;
 
 /// Mean prior of eq. 3.8-3.9, precomputed by em_prior_init(). n_targets = 0
@@ -122,6 +125,18 @@ md_status_t em_outlier_init(size_t d, const double *noise_cov, double volume, em
 
 /// log f0(y) of Remark 3.2, evaluated in the log domain.
 double em_outlier_logpdf(const em_outlier_t *outlier, const double *y);
+
+/// Tabulates log f0(y_i) for every point of `data` (f0 does not change during
+/// a fit: the EM and the evidence then read the table instead of evaluating it
+/// per point and iteration). The table is used only for the same points array
+/// (pointer and n); it stays valid until em_outlier_init() or the next call,
+/// so the caller must re-tabulate if it changes the points in place.
+/// MD_E_ARG on bad input (the table is then cleared). O(n d^2).
+md_status_t em_outlier_tabulate(em_outlier_t *outlier, const em_data_t *data);
+
+/// log f0(y_i) of point i of `data`: from the table when it was made for this
+/// data, else evaluated. O(1) or O(d^2).
+double em_outlier_logpdf_at(const em_outlier_t *outlier, const em_data_t *data, size_t i);
 
 /// Prepares the mean prior (eq. 3.8, 3.9) from the targets (may be NULL when
 /// n_targets = 0): ω_0 ∝ λ0 = λν + λφ, ω_j ∝ P_d,j. lambda0 > 0.

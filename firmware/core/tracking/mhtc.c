@@ -344,7 +344,8 @@ static md_status_t mhtc_run_mhtc(mhtc_state_t *st, const mhtc_input_t *in, mhtc_
     double volume = 0.0;
     ws->n_models = 0u;
     const bool data_ok = (in->n > 0u) && (em_bounding_volume(&data, &volume) == MD_OK) &&
-                         (em_outlier_init(data.d, in->noise_cov, volume, &ws->cl.outlier) == MD_OK);
+                         (em_outlier_init(data.d, in->noise_cov, volume, &ws->cl.outlier) == MD_OK) &&
+                         (em_outlier_tabulate(&ws->cl.outlier, &data) == MD_OK);
     for (size_t p = 0u; data_ok && (p < parents); ++p) {
         mhtc_expand_parent(st, &data, volume, ws, p);
     }
