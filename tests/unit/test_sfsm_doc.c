@@ -54,7 +54,7 @@ static unsigned popcount(uint16_t m)
 {
     unsigned c = 0u;
     for (unsigned s = 0u; s < 16u; ++s) {
-        c += (m >> s) & 1u;
+        c += ((unsigned)m >> s) & 1u;
     }
     return c;
 }
@@ -68,7 +68,7 @@ static void put_from(uint16_t mask)
         put("any but ");
     }
     for (unsigned s = 0u; s < (unsigned)SFSM_STATE_COUNT; ++s) {
-        const bool in = ((mask >> s) & 1u) != 0u;
+        const bool in = (((unsigned)mask >> s) & 1u) != 0u;
         if (in != most) {
             put(first ? "" : ", ");
             put(sfsm_state_name((sfsm_state_t)s));
