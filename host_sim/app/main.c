@@ -10,6 +10,7 @@
 
 #include "export/sim_export.h"
 #include "md_bus.h"
+#include "md_bus_fault.h"
 #include "md_can.h"
 #include "scenario/scenario.h"
 #include "sim_cli.h"
@@ -24,7 +25,10 @@
 static const md_node_id_t SIMPROC_NODES[3] = {MD_NODE_ACT, MD_NODE_HALL, MD_NODE_FE};
 
 typedef struct {
-    md_bus_t bus;
+    md_bus_t raw_bus;                    ///< the endpoint as opened
+    md_bus_fault_t fault[SCENARIO_BUS_FAULTS_MAX];   ///< the scenario's bus faults, nested around it
+    uint32_t n_fault;
+    md_bus_t *busp;                      ///< what the plant uses: the outermost wrapper or raw_bus
     simnode_plant_t plant;
     uint64_t origin_us;                  ///< wall time of simulated time 0 (realtime)
     uint64_t next_hb_us;
@@ -32,7 +36,7 @@ typedef struct {
     uint32_t node_resets_seen[3];
     uint32_t pace_fps;
     uint64_t pace_t0_us, pace_sent, last_tx_us;
-    uint64_t tx_frames, tx_errors, tx_retries, heartbeats;
+    uint64_t tx_frames, tx_errors, tx_retries, heartbeats, hb_silenced;
     uint32_t since_hb_check;
 } simproc_t;
 
@@ -55,15 +59,20 @@ static void sleep_us(uint64_t us)
 
 static void send_heartbeats(simproc_t *sp, uint64_t now)
 {
+    simnode_plant_silence_at(&sp->plant, sp->plant.now_us);
     for (uint32_t i = 0; i < 3u; i++) {
         const simnode_t *n = simnode_plant_node(&sp->plant, SIMPROC_NODES[i]);
         if (n->resets != sp->node_resets_seen[i]) {   /* an NMT reset restarts the uptime */
             sp->node_resets_seen[i] = n->resets;
             sp->node_origin_us[i] = now;
         }
+        if (n->silent) {   /* injected node silence: heartbeat included */
+            sp->hb_silenced++;
+            continue;
+        }
         md_frame_t f;
         simnode_heartbeat_frame(n, (uint32_t)((now - sp->node_origin_us[i]) / 1000000u), &f);
-        if (md_bus_send(&sp->bus, &f) < 0) {
+        if (md_bus_send(sp->busp, &f) < 0) {
             sp->tx_errors++;
         } else {
             sp->heartbeats++;
@@ -112,11 +121,11 @@ static int simproc_send(void *ctx, const md_frame_t *f)
     simproc_t *sp = ctx;
     uint64_t now = mono_us();
     pace(sp, now);
-    int rc = md_bus_send(&sp->bus, f);
+    int rc = md_bus_send(sp->busp, f);
     for (uint32_t i = 0; rc == -EAGAIN && i < SIMPROC_TX_RETRIES && g_stop == 0; i++) {
         sp->tx_retries++;
         sleep_us(1000u);
-        rc = md_bus_send(&sp->bus, f);
+        rc = md_bus_send(sp->busp, f);
     }
     if (rc < 0) {
         sp->tx_errors++;
@@ -139,7 +148,7 @@ static void print_stats(simproc_t *sp)
             " heartbeats, tx errors %" PRIu64 ", retries %" PRIu64 "; bus rx overflow %" PRIu64 "\n",
             (double)sp->plant.now_us * 1e-6, ps->rx_frames, ps->rx_ignored, ps->rx_malformed, ps->rx_foreign_clock,
             ps->steps,
-            sp->tx_frames, sp->heartbeats, sp->tx_errors, sp->tx_retries, sp->bus.stats.rx_overflow);
+            sp->tx_frames, sp->heartbeats, sp->tx_errors, sp->tx_retries, sp->raw_bus.stats.rx_overflow);
     for (uint32_t i = 0; i < 3u; i++) {
         const simnode_t *n = simnode_plant_node(&sp->plant, SIMPROC_NODES[i]);
         fprintf(stderr,
@@ -193,7 +202,7 @@ static int simproc_loop(simproc_t *sp, uint64_t duration_us)
             return 0;
         }
         md_frame_t f;
-        const int rc = md_bus_receive(&sp->bus, &f, wait_budget_us(sp, mono_us()));
+        const int rc = md_bus_receive(sp->busp, &f, wait_budget_us(sp, mono_us()));
         if (rc == 1) {
             simnode_plant_handle(&sp->plant, &f);
         } else if (rc < 0 && rc != -EINTR) {
@@ -234,6 +243,67 @@ static int serve(simproc_t *sp, const sim_cli_t *cli, const scenario_t *sc, simn
     return rc;
 }
 
+static int64_t fault_clock(void *ctx)
+{
+    const simproc_t *sp = ctx;
+    return (int64_t)sp->plant.now_us;   /* fault windows are simulated time */
+}
+
+/* The scenario's bus faults (scenario.h): one md_bus_fault wrapper each
+ * around the endpoint (tx = frames the simulator sends, rx = frames it
+ * receives), seeded from the session seed and the fault's index. */
+static int wrap_bus_faults(simproc_t *sp, const scenario_t *sc, uint64_t seed)
+{
+    sp->busp = &sp->raw_bus;
+    for (uint32_t i = 0; i < sc->faults.n_bus && i < SCENARIO_BUS_FAULTS_MAX; i++) {
+        const scenario_bus_fault_t *b = &sc->faults.bus[i];
+        md_bus_fault_params_t p;
+        md_bus_fault_default_params(&p);
+        if (b->kind < (uint32_t)MD_BUS_FAULT_KINDS) {
+            p.prob[b->kind] = b->prob;
+        }
+        p.directions = b->directions;
+        p.delay_frames = (b->frames > 0u) ? b->frames : p.delay_frames;
+        if (b->has_id != 0u) {
+            p.id_mask = 0x1FFFFFFFu;
+            p.id_match = b->can_id;
+        }
+        p.t_from_us = (int64_t)(b->from_s * 1e6);
+        p.t_to_us = (b->to_s < 9.2e12) ? (int64_t)(b->to_s * 1e6) : INT64_MAX;
+        p.seed = seed * 0x9E3779B97F4A7C15ull + i + 1u;
+        if (md_bus_fault_wrap(&sp->fault[i], sp->busp, &p, fault_clock, sp) != 0) {
+            fprintf(stderr, "microdrive-sim: bus fault %u of the scenario is invalid\n", (unsigned)i);
+            return 1;
+        }
+        sp->busp = &sp->fault[i].bus;
+        sp->n_fault = i + 1u;
+    }
+    return 0;
+}
+
+/* What the fault injection did (docs/safety.md); nothing without faults. */
+static void print_faults(const simproc_t *sp, const scenario_t *sc)
+{
+    for (uint32_t i = 0; i < sp->n_fault; i++) {
+        const md_bus_fault_counters_t c = md_bus_fault_counters(&sp->fault[i]);
+        fprintf(stderr, "microdrive-sim: bus fault %u: frames seen %" PRIu64, (unsigned)i, c.frames_seen);
+        for (uint32_t k = 0; k < (uint32_t)MD_BUS_FAULT_KINDS; k++) {
+            fprintf(stderr, ", %s %" PRIu64, md_bus_fault_kind_name((md_bus_fault_kind_t)k), c.injected[k]);
+        }
+        fprintf(stderr, ", hold full %" PRIu64 "\n", c.hold_full);
+    }
+    if (sc->faults.n_silent > 0u) {
+        fprintf(stderr,
+                "microdrive-sim: node silence: frames swallowed act %" PRIu64 ", hall %" PRIu64 ", fe %" PRIu64
+                "; heartbeats not sent %" PRIu64 "\n",
+                sp->plant.act.node.stats.tx_silenced, sp->plant.hall.node.stats.tx_silenced,
+                sp->plant.fe.node.stats.tx_silenced, sp->hb_silenced);
+    }
+    if (sc->faults.n_restarts > 0u) {
+        fprintf(stderr, "microdrive-sim: controller_restart is done by the launcher (in-process sessions only)\n");
+    }
+}
+
 static int run_bus(const sim_cli_t *cli, const scenario_t *sc, uint64_t seed)
 {
     char err[1024];
@@ -250,18 +320,22 @@ static int run_bus(const sim_cli_t *cli, const scenario_t *sc, uint64_t seed)
     }
     simnode_world_set_truth(world, truth);
     simproc_t *sp = calloc(1u, sizeof *sp);   /* md_bus_t must not move while open */
-    int rc = (sp == NULL) ? -ENOMEM : md_bus_open(&sp->bus, cli->bus, err, sizeof err);
-    if (rc == 0 && sp->bus.kind == MD_BUS_INPROC) {
-        md_bus_close(&sp->bus);
+    int rc = (sp == NULL) ? -ENOMEM : md_bus_open(&sp->raw_bus, cli->bus, err, sizeof err);
+    if (rc == 0 && sp->raw_bus.kind == MD_BUS_INPROC) {
+        md_bus_close(&sp->raw_bus);
         snprintf(err, sizeof err, "an in-process bus has no other node in this process");
         rc = -EINVAL;
     }
     if (rc != 0) {
         fprintf(stderr, "microdrive-sim: cannot open bus '%s': %s\n", cli->bus, (sp != NULL) ? err : "no memory");
     } else {
-        fprintf(stderr, "microdrive-sim: bus %s (%s)\n", sp->bus.name, err);
-        rc = serve(sp, cli, sc, world, seed);
-        md_bus_close(&sp->bus);
+        fprintf(stderr, "microdrive-sim: bus %s (%s)\n", sp->raw_bus.name, err);
+        rc = wrap_bus_faults(sp, sc, seed);
+        if (rc == 0) {
+            rc = serve(sp, cli, sc, world, seed);
+            print_faults(sp, sc);
+        }
+        md_bus_close(sp->busp);   /* closes the wrappers' chain and the endpoint */
     }
     free(sp);
     if (truth != NULL) {

@@ -77,6 +77,10 @@ void simnode_heartbeat_frame(const simnode_t *n, uint32_t uptime_s, md_frame_t *
 
 int simnode_send(simnode_t *n, const md_frame_t *frame)
 {
+    if (n->silent) {
+        n->stats.tx_silenced++;
+        return 0;
+    }
     const int rc = n->sink.send(n->sink.ctx, frame);
     if (rc < 0) {
         n->stats.tx_errors++;

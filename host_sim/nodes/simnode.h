@@ -35,6 +35,7 @@ typedef struct {
     uint64_t tx_frames;     ///< frames the sink accepted
     uint64_t tx_errors;     ///< frames the sink refused
     uint64_t emcy_sent;     ///< EMCY frames among tx_frames
+    uint64_t tx_silenced;   ///< frames swallowed while the node was silent (fault injection)
 } simnode_stats_t;
 
 /// The shared part of a node. Plain data, owned by the caller.
@@ -45,6 +46,8 @@ typedef struct {
     bool lockstep;               ///< heartbeat flag bit2
     bool estop_latched;          ///< heartbeat flag bit0 (only the actuator latches)
     bool fault;                  ///< heartbeat flag bit1: a fault is present
+    bool silent;                 ///< injected fault (scenario node_silent): sends nothing, heartbeat
+                                 ///< included; the plant sets it from the scenario's windows
     uint32_t resets;             ///< NMT resets so far (the process restarts the uptime)
     uint32_t electrodes;         ///< reported in the heartbeat
     simnode_stats_t stats;
@@ -82,7 +85,8 @@ simnode_nmt_effect_t simnode_nmt_apply(simnode_t *n, uint8_t command, uint8_t ta
 void simnode_heartbeat_frame(const simnode_t *n, uint32_t uptime_s, md_frame_t *out);
 
 /// Sends one frame through the sink and counts the outcome. Returns the
-/// sink's code (0 or negative).
+/// sink's code (0 or negative). A silent node swallows the frame (counted in
+/// tx_silenced) and returns 0: the node does not know it is not heard.
 int simnode_send(simnode_t *n, const md_frame_t *frame);
 
 /// Sends an EMCY (0x080 + id) with the given md_emcy_code_t, electrode and info.

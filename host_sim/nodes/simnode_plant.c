@@ -66,6 +66,7 @@ md_status_t simnode_plant_init(simnode_plant_t *p, const simnode_plant_cfg_t *cf
     simnode_fe_init(&p->fe, world, cfg->autostart, cfg->lockstep, node_sink);
     p->now_us = simnode_world_time_us(world);
     p->next_clock_us = p->now_us;
+    simnode_plant_silence_at(p, p->now_us);
     return MD_OK;
 }
 
@@ -84,11 +85,24 @@ uint64_t simnode_plant_next_event_us(const simnode_plant_t *p)
     return t;
 }
 
+void simnode_plant_silence_at(simnode_plant_t *p, uint64_t t_us)
+{
+    if (t_us > p->silence_t_us) {
+        p->silence_t_us = t_us;
+    }
+    const scenario_faults_t *f = simnode_world_faults(p->world);
+    const double t_s = (double)p->silence_t_us * 1e-6;
+    p->act.node.silent = scenario_faults_node_silent(f, MD_NODE_ACT, t_s);
+    p->hall.node.silent = scenario_faults_node_silent(f, MD_NODE_HALL, t_s);
+    p->fe.node.silent = scenario_faults_node_silent(f, MD_NODE_FE, t_s);
+}
+
 /* Runs every event due at t (t >= now): world first, then the nodes in a
  * fixed order so that equal times always give the same frame order. */
 static void plant_run_at(simnode_plant_t *p, uint64_t t_us)
 {
     p->now_us = t_us;
+    simnode_plant_silence_at(p, t_us);
     simnode_world_advance(p->world, t_us);
     simnode_act_run(&p->act, t_us);
     simnode_hall_run(&p->hall, t_us);
@@ -251,6 +265,7 @@ static void plant_dispatch(simnode_plant_t *p, const md_frame_t *f)
 void simnode_plant_handle(simnode_plant_t *p, const md_frame_t *f)
 {
     p->stats.rx_frames++;
+    simnode_plant_silence_at(p, p->now_us);
     plant_batch_open(p);
     plant_dispatch(p, f);
     if (p->cfg.lockstep) {
@@ -270,6 +285,7 @@ bool simnode_plant_advance(simnode_plant_t *p, uint64_t t_us)
     }
     p->now_us = t_us;
     simnode_world_advance(p->world, t_us);
+    simnode_plant_silence_at(p, t_us);
     return true;
 }
 

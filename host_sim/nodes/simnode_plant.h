@@ -70,6 +70,7 @@ typedef struct {
     simnode_hall_t hall;
     simnode_fe_t fe;
     simnode_plant_stats_t stats;
+    uint64_t silence_t_us;       ///< latest time the node silences were evaluated at
 } simnode_plant_t;
 
 /// Defaults: lockstep, autostart, scenario Hall rate, calibration every 10 s,
@@ -96,6 +97,14 @@ bool simnode_plant_advance(simnode_plant_t *p, uint64_t t_us);
 /// Earliest pending event (realtime scheduling); UINT64_MAX if none.
 uint64_t simnode_plant_next_event_us(const simnode_plant_t *p);
 
+/// Fault injection (scenario `node_silent`): sets each node's `silent` flag
+/// from the world's silence windows at max(t_us, any earlier time given or
+/// reached), so silences follow whichever clock is ahead (the plant's
+/// simulated time, or the launcher's clock while the plant stands still in
+/// lockstep). The plant calls it itself at every event; launchers call it
+/// before sending heartbeats. SIM_CLOCK (simulation infrastructure, not a
+/// node's frame) is never silenced. O(silences).
+void simnode_plant_silence_at(simnode_plant_t *p, uint64_t t_us);
 /// The node with this id (MD_NODE_ACT, _HALL, _FE), or NULL.
 simnode_t *simnode_plant_node(simnode_plant_t *p, md_node_id_t id);
 

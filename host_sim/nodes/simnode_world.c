@@ -20,6 +20,7 @@ struct simnode_world {
     uint32_t fs_hz;              /* integer sampling rate shared by every electrode */
     bool recording[SIM_MAX_ELECTRODES];
     FILE *truth;                 /* ground-truth sink (not owned) or NULL */
+    scenario_faults_t faults;    /* launcher/node-level faults of the scenario */
 };
 
 static void world_err(char *err, size_t errlen, const char *msg)
@@ -54,8 +55,11 @@ simnode_world_t *simnode_world_create_scenario(const scenario_t *sc, uint64_t se
         return NULL;
     }
     w->fs_hz = (uint32_t)fs;
+    w->faults = sc->faults;
     return w;
 }
+
+const scenario_faults_t *simnode_world_faults(const simnode_world_t *w) { return &w->faults; }
 
 simnode_world_t *simnode_world_create(const char *scenario_path, uint64_t seed, char *err, size_t errlen)
 {

@@ -54,6 +54,10 @@ simnode_world_t *simnode_world_create(const char *scenario_path, uint64_t seed, 
 /// The same from a parsed scenario (host_sim/scenario/scenario.h).
 simnode_world_t *simnode_world_create_scenario(const scenario_t *sc, uint64_t seed, char *err, size_t errlen);
 
+/// The scenario's launcher/node-level faults (bus faults, node silences,
+/// controller restarts; host_sim/scenario/scenario.h). All empty for the
+/// default world. Borrowed: valid while the world lives.
+const scenario_faults_t *simnode_world_faults(const simnode_world_t *w);
 /// Releases the world; NULL is allowed.
 void simnode_world_destroy(simnode_world_t *w);
 

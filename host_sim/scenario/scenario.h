@@ -111,6 +111,9 @@ bool scenario_node_silent(const scenario_t *sc, uint32_t node, double t_s);
 /// Number of controller restarts scheduled in (t_prev_s, t_now_s]: the
 /// launcher restarts the controller when this is non-zero.
 uint32_t scenario_restarts_due(const scenario_t *sc, double t_prev_s, double t_now_s);
+/// The same two on the faults alone (what a simnode world keeps).
+bool scenario_faults_node_silent(const scenario_faults_t *f, uint32_t node, double t_s);
+uint32_t scenario_faults_restarts_due(const scenario_faults_t *f, double t_prev_s, double t_now_s);
 /// True if the scenario declares any fault at all.
 bool scenario_has_faults(const scenario_t *sc);
 /// Builds the world of a scenario with `seed`.
