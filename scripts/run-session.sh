@@ -5,14 +5,19 @@
 #
 #   scripts/run-session.sh [--scenario FILE] [--seed N] [--seconds S | --cycles N]
 #                          [--bus auto|udp|vcan0|IFACE|inproc] [--out DIR]
-#                          [--build-dir DIR] [--idle-s S]
+#                          [--build-dir DIR] [--idle-s S] [--param NAME=VALUE]...
+#                          [--no-lcm] [--no-plots]
 #
 # --seconds S is simulated time (default: the scenario's duration_s). Builds
 # the release preset first when --build-dir has no binaries. Leaves in DIR:
 # candump.log (every frame, candump -L format), truth.jsonl (ground truth),
-# report.json, and sim.log/fw.log for a socket bus. Exit 0 when the session
-# reached its goal, or ended idle with every node's heartbeat seen, no node
-# reported lost (EMCY 0x8130) and no frame rejected (EMCY 0x8200); else 1.
+# report.json, session.lcmlog (LCM log: lcm-logplayer, docs/telemetry.md),
+# tracks_pc.png waveforms.png status.png hypotheses.png truth.png, and
+# sim.log/fw.log for a socket bus. --param sets a controller parameter before
+# the start (e.g. tracker=1); --no-lcm/--no-plots leave the log/plots out.
+# Exit 0 when the session reached its goal, or ended idle with every node's
+# heartbeat seen, no node reported lost (EMCY 0x8130) and no frame rejected
+# (EMCY 0x8200); else 1 (also when the LCM log or the plots failed).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 
@@ -24,7 +29,8 @@ out=""
 idle=20
 build="$root/build/release"
 
-usage() { sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; }
+extra=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --scenario) scenario=$2; shift 2 ;;
@@ -35,6 +41,8 @@ while [ $# -gt 0 ]; do
         --out) out=$2; shift 2 ;;
         --build-dir) build=$2; shift 2 ;;
         --idle-s) idle=$2; shift 2 ;;
+        --param) extra+=(--param "$2"); shift 2 ;;
+        --no-lcm|--no-plots) extra+=("$1"); shift ;;
         -h|--help) usage; exit 0 ;;
         *) echo "run-session: unknown option '$1' (see --help)" >&2; exit 2 ;;
     esac
@@ -50,13 +58,14 @@ fi
 [ -x "$root/.venv/bin/python" ] || "$root/scripts/setup-venv.sh"
 
 out=${out:-"$root/out/session-$(date +%Y%m%d-%H%M%S)"}
-args=(--scenario "$scenario" --bus "$bus" --out "$out" --idle-s "$idle" "${goal[@]}")
+args=(--scenario "$scenario" --bus "$bus" --out "$out" --idle-s "$idle" "${goal[@]}" "${extra[@]}")
 [ -n "$seed" ] && args+=(--seed "$seed")
 set +e
 "$bin/microdrive-session" "${args[@]}"
 rc=$?
 set -e
-[ "$rc" -eq 0 ] && { echo "run-session: goal reached; report: $out/report.json"; exit 0; }
+[ "$rc" -eq 0 ] && { echo "run-session: goal reached; report: $out/report.json, LCM log and plots in $out"; exit 0; }
+[ "$rc" -eq 5 ] && { echo "run-session: the session is fine but its LCM log or plots failed (see above)" >&2; exit 1; }
 [ "$rc" -eq 4 ] || exit 1
 
 # Ended idle before its goal: healthy only if every node was heard and the
