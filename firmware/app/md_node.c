@@ -622,6 +622,7 @@ double md_node_param_read(const md_node_t *node, md_param_id_t id, uint64_t now_
     case MD_P_SFSM_LOST_CYCLES:
     case MD_P_SFSM_SNR_DROP:
     case MD_P_SC_TOL_UM:
+    case MD_P_SFSM_SNR_MIN:
     case MD_P_MHTC_Q_UV:
     case MD_P_TRACKER:
         return md_params_get(&node->params, id);

@@ -80,9 +80,19 @@ static void run(const sfsm_input_t *in, unsigned n)
     }
 }
 
+/* The transition tests use small SNRs (5, 8 ...): the noise floor is set
+ * below all of them here and has its own tests (start_with_floor). */
 static void start(void)
 {
     sfsm_config_default(&cfg);
+    cfg.snr_min = 1.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, sfsm_init(&sm, &cfg));
+}
+
+static void start_with_floor(void)
+{
+    sfsm_config_default(&cfg);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 9.0, cfg.snr_min);
     TEST_ASSERT_EQUAL_INT(MD_OK, sfsm_init(&sm, &cfg));
 }
 
@@ -156,12 +166,62 @@ static void test_config_defaults_and_checks(void)
     bad.snr_drop_frac = 1.0;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
     bad = cfg;
+    bad.snr_min = -0.5;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad.snr_min = NAN;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad = cfg;
     bad.initial_dir = 0;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_init(&sm, &bad));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_init(NULL, &cfg));
     sfsm_input_t in = base();
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_step(&sm, NULL, &out));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_step(&sm, &in, NULL));
+}
+
+/* Noise floor (ours): threshold crossings of noise and distant multi-unit
+ * activity form a cluster with SNR ~6-7 and an IQM that jumps between 0 and
+ * 8 from one interval to the next. Such a track is no neuron: Spike Search
+ * goes on, Ω3 never fires; a track above the floor is a neuron again. */
+static void test_noise_floor_never_isolates(void)
+{
+    start_with_floor();
+    sfsm_input_t in = base();
+    converged(&in);
+    in.snr = 8.9;
+    for (unsigned k = 0u; k < 50u; ++k) {
+        in.iqm = (double)(k % 9u); /* 0 .. 8: Ω3 every few cycles if it counted */
+        TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&in));
+        TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+        TEST_ASSERT_EQUAL_INT(-1, out.row);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.step_search_um, out.step_um);
+        TEST_ASSERT_EQUAL_INT(SFSM_R_SEARCH, out.reason);
+    }
+    TEST_ASSERT_FALSE(sm.has_ref);
+    in.snr = 9.0; /* at the floor: a neuron; Ω3 at once */
+    in.iqm = 6.0;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_EQUAL_UINT32(TRACK_A, sm.ref_track);
+}
+
+/* An isolated neuron whose SNR sinks below the floor counts as lost (the
+ * lost_cycles rule), not as an SNR drop to re-isolate on noise. */
+static void test_noise_floor_counts_as_lost(void)
+{
+    start_with_floor();
+    sfsm_input_t in = base();
+    in.snr = 12.0;
+    in.iqm = 6.0;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    in.snr = 8.0; /* < 0.85 × 12 and < the floor */
+    in.iqm = 2.5;
+    run(&in, (unsigned)cfg.lost_cycles - 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.step_search_um, out.step_um);
 }
 
 static void test_spike_search_steps_then_finds_spikes(void)
@@ -651,6 +711,8 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_config_defaults_and_checks);
+    RUN_TEST(test_noise_floor_never_isolates);
+    RUN_TEST(test_noise_floor_counts_as_lost);
     RUN_TEST(test_spike_search_steps_then_finds_spikes);
     RUN_TEST(test_gradient_search_waits_r_cycles);
     RUN_TEST(test_isolate_follows_the_optimiser);

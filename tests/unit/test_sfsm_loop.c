@@ -56,6 +56,7 @@ static void test_search_isolate_drift_reisolate(void)
         md_rng_t rng;
         md_rng_seed(&rng, seed);
         sfsm_config_default(&scfg);
+        scfg.snr_min = 2.5; /* this model's noise floor: no track below SNR 2.5 */
         sc_config_default(&ccfg);
         TEST_ASSERT_EQUAL_INT(MD_OK, sfsm_init(&sm, &scfg));
         sc_table_init(&table);

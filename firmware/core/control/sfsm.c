@@ -163,6 +163,7 @@ void sfsm_config_default(sfsm_config_t *cfg)
     cfg->gamma2 = 3.0;
     cfg->gamma3 = 5.0;
     cfg->snr_drop_frac = 0.85;
+    cfg->snr_min = 9.0;
     cfg->wait_r = 3u;
     cfg->lost_cycles = 5u;
     cfg->initial_dir = 1;
@@ -183,6 +184,7 @@ md_status_t sfsm_config_check(const sfsm_config_t *cfg)
                     sfsm_step_ok(cfg->step_sample_um, cap) && sfsm_step_ok(cfg->step_resample_um, cap) &&
                     isfinite(cfg->gamma3) && (cfg->gamma1 > 0.0) && (cfg->gamma1 < cfg->gamma2) &&
                     (cfg->gamma2 < cfg->gamma3) && (cfg->snr_drop_frac > 0.0) && (cfg->snr_drop_frac < 1.0) &&
+                    isfinite(cfg->snr_min) && (cfg->snr_min >= 0.0) &&
                     (cfg->wait_r >= 1u) && (cfg->wait_r <= SFSM_R_MAX) && (cfg->lost_cycles >= 1u) &&
                     ((cfg->initial_dir == 1) || (cfg->initial_dir == -1));
     return ok ? MD_OK : MD_E_ARG;
@@ -407,7 +409,10 @@ md_status_t sfsm_step(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out)
     (void)memset(out, 0, sizeof *out);
     sfsm_facts_t f;
     f.valid = sfsm_input_valid(in);
-    f.dom = f.valid && in->has_dominant;
+    /* Noise floor (ours, docs/sfsm.md): threshold crossings of noise and
+     * distant multi-unit activity form clusters whose SNR is inflated by the
+     * detection threshold; such a track is no neuron and never dominant. */
+    f.dom = f.valid && in->has_dominant && (in->snr >= sm->cfg.snr_min);
     f.ours = f.dom && (!sm->has_ref || (in->dominant_track == sm->ref_track));
     if (!f.valid) {
         sm->bad_inputs++;

@@ -125,6 +125,7 @@ typedef struct {
     double gamma2;            ///< γ2: IQM to declare isolation at the peak (default 3)
     double gamma3;            ///< γ3: IQM to declare isolation at once (default 5)
     double snr_drop_frac;     ///< leave Neuron Isolated below this × isolation SNR (thesis 0.85)
+    double snr_min;           ///< a track below this SNR is noise floor, never dominant (default 9, ours)
     uint8_t wait_r;           ///< R of WAIT transitions (default 3)
     uint8_t lost_cycles;      ///< cycles without a dominant track before Spike Search (default 5)
     int8_t initial_dir;       ///< first search direction: +1 advance (default), -1 retract
@@ -132,7 +133,8 @@ typedef struct {
 
 /// Inputs of one cycle.
 typedef struct {
-    bool has_dominant;          ///< a dominant track exists this interval
+    bool has_dominant;          ///< a dominant track exists this interval (the SFSM
+                                ///< ignores it while snr < cfg.snr_min: noise floor)
     uint32_t dominant_track;    ///< its MHTC track ID
     double snr;                 ///< its SNR (finite when has_dominant)
     double iqm;                 ///< its isolation distance ID_g (finite when has_dominant)
@@ -182,7 +184,7 @@ typedef struct {
 void sfsm_config_default(sfsm_config_t *cfg);
 
 /// MD_OK if 0 < steps <= Δmax (finite), 0 < γ1 < γ2 < γ3, 0 < drop < 1,
-/// 1 <= R <= SFSM_R_MAX, lost_cycles >= 1, initial_dir = ±1; else MD_E_ARG.
+/// snr_min >= 0 (finite), 1 <= R <= SFSM_R_MAX, lost_cycles >= 1, initial_dir = ±1; else MD_E_ARG.
 md_status_t sfsm_config_check(const sfsm_config_t *cfg);
 
 /// Starts in Spike Search. MD_E_ARG on NULL or an invalid config. O(1).
