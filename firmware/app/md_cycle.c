@@ -32,6 +32,7 @@ static void sfsm_cfg_from(const md_params_t *p, sfsm_config_t *cfg)
     cfg->gamma2 = md_params_get(p, MD_P_SFSM_GAMMA2);
     cfg->gamma3 = md_params_get(p, MD_P_SFSM_GAMMA3);
     cfg->snr_drop_frac = md_params_get(p, MD_P_SFSM_SNR_DROP);
+    cfg->snr_min = md_params_get(p, MD_P_SFSM_SNR_MIN);
     cfg->wait_r = (uint8_t)md_params_get_u32(p, MD_P_SFSM_WAIT_R);
     cfg->lost_cycles = (uint8_t)md_params_get_u32(p, MD_P_SFSM_LOST_CYCLES);
 }
@@ -129,8 +130,24 @@ uint64_t md_cycle_time_us(const md_cycle_t *c, const md_node_t *node, uint64_t n
  * from the first SIM_CLOCK received after the SIM_STEP, not from the clock
  * known now: over a socket bus the SIM_CLOCK closing the previous batch may
  * still be queued behind its REC_END / final ACT_STATUS, and a wait based on
- * the older time would end at once on it. Until anchored, wait_wall_us (unused
- * by SIM waits) holds the duration. */
+ * the older time would end at once on it. Until anchored, wait_step_us holds
+ * the duration. */
+/* Platform time at which the current wait for an answer has failed. In
+ * lockstep simulated time moves only when the plant answers, so a wall-clock
+ * bound there says nothing about the session, only about the plant's health:
+ * it is pushed back while the plant keeps sending (heartbeats every 100 ms),
+ * and the outcome no longer depends on how fast the host runs. */
+static uint64_t answer_deadline_us(const md_cycle_t *c)
+{
+    if (!c->lockstep) {
+        return c->timeout_wall_us;
+    }
+    const uint64_t silence = c->plant_alive_us + ANSWER_MARGIN_US;
+    return (silence > c->timeout_wall_us) ? silence : c->timeout_wall_us;
+}
+
+static bool answer_late(const md_cycle_t *c, uint64_t now_us) { return now_us >= answer_deadline_us(c); }
+
 static void start_wait(md_cycle_t *c, md_node_t *node, uint32_t duration_us, uint64_t now_us)
 {
     c->timeout_wall_us = now_us + duration_us + ANSWER_MARGIN_US;
@@ -147,7 +164,7 @@ static void start_wait(md_cycle_t *c, md_node_t *node, uint32_t duration_us, uin
         (void)md_node_send(node, MD_CAN_SIM_STEP_FRAME_ID, buf, md_can_sim_step_pack(buf, &m, sizeof buf), false);
         c->wait = MD_WAIT_SIM;
         c->wait_sim_us = WAIT_SIM_UNANCHORED;
-        c->wait_wall_us = duration_us;
+        c->wait_step_us = duration_us;
     } else {
         c->wait = MD_WAIT_WALL;
         c->wait_wall_us = now_us + duration_us;
@@ -417,7 +434,7 @@ static void drive_servo(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         case MD_SERVO_A_FINISHED: move_finished(c, node, now_us); return;
         case MD_SERVO_A_NONE:
         default:
-            if (now_us >= c->timeout_wall_us) { /* the actuator never answered */
+            if (answer_late(c, now_us)) { /* the actuator never answered */
                 md_servo_abort(&el->servo);
                 (void)md_node_step(node, c->active, MD_ACT_DIR_ADVANCE, 0u, 0u);
                 el->timeouts++;
@@ -464,11 +481,21 @@ static void on_plant_frame(md_cycle_t *c, const md_frame_t *f)
     }
 }
 
+/* Frames only a live plant sends: its heartbeats and its answers. */
+static bool plant_frame(uint32_t id)
+{
+    return id == MD_CAN_HEARTBEAT_ACT_FRAME_ID || id == MD_CAN_HEARTBEAT_HALL_FRAME_ID ||
+           id == MD_CAN_HEARTBEAT_FE_FRAME_ID || id == MD_CAN_SIM_CLOCK_FRAME_ID || id == MD_CAN_REC_END_FRAME_ID ||
+           id == MD_CAN_HALL_READING_FRAME_ID || id == MD_CAN_ACT_STATUS_FRAME_ID || id == MD_CAN_REC_DATA_FRAME_ID;
+}
+
 void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool accepted, uint64_t now_us)
 {
-    (void)now_us;
     if (c == NULL || node == NULL || f == NULL) {
         return;
+    }
+    if (accepted && plant_frame(f->id)) {
+        c->plant_alive_us = now_us;
     }
     if (f->id == MD_CAN_REC_DATA_FRAME_ID && (f->flags & MD_FRAME_FLAG_EXT) == 0u) {
         on_rec_data(c, f, accepted);
@@ -479,7 +506,7 @@ void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool
     }
     md_electrode_t *el = &c->el[c->active];
     if (f->id == MD_CAN_SIM_CLOCK_FRAME_ID && c->wait == MD_WAIT_SIM && c->wait_sim_us == WAIT_SIM_UNANCHORED) {
-        c->wait_sim_us = node->sim_time_us + c->wait_wall_us; /* the SIM_STEP's time starts here */
+        c->wait_sim_us = node->sim_time_us + c->wait_step_us; /* the SIM_STEP's time starts here */
     }
     if (f->id == MD_CAN_SIM_CLOCK_FRAME_ID && el->phase == MD_CYC_RECORDING && !el->rec_clock_seen) {
         el->rec_clock_seen = true;
@@ -556,7 +583,7 @@ void md_cycle_poll(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         return;
     }
     if (!wait_done(c, node, now_us)) {
-        if (now_us >= c->timeout_wall_us) { /* the simulator never closed the SIM_STEP */
+        if (answer_late(c, now_us)) { /* the simulator never closed the SIM_STEP */
             el->timeouts++;
             c->wait = MD_WAIT_NONE;
             if (el->phase == MD_CYC_MOVING) {
@@ -576,7 +603,7 @@ void md_cycle_poll(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         }
         break;
     case MD_CYC_RECORDING:
-        if (now_us >= c->timeout_wall_us) {
+        if (answer_late(c, now_us)) {
             el->timeouts++;
             recording_failed(c, node);
         }
@@ -615,5 +642,5 @@ uint64_t md_cycle_next_deadline_us(const md_cycle_t *c, const md_node_t *node)
     if (c->wait == MD_WAIT_WALL && c->wait_wall_us < c->timeout_wall_us) {
         return c->wait_wall_us;
     }
-    return c->timeout_wall_us;
+    return answer_deadline_us(c);
 }

@@ -18,7 +18,11 @@
 ///
 /// Time: cycle logic uses the simulator's time (SIM_CLOCK) in lockstep and
 /// the platform's monotonic clock otherwise; every wait for an answer is also
-/// bounded in platform time (a timeout ends the cycle, counted).
+/// bounded in platform time (a timeout ends the cycle, counted). In lockstep
+/// that bound only guards against a dead plant: it runs from the plant's
+/// latest frame (heartbeats included), so a slow but live simulator never
+/// changes a decision; a dead one is stopped by heartbeat supervision
+/// (docs/safety.md H6) and, 5 s after its last frame, by the timeout.
 #ifndef MD_CYCLE_H
 #define MD_CYCLE_H
 
@@ -128,9 +132,11 @@ typedef struct {
     bool lockstep;              ///< the front-end's heartbeat carries the lockstep flag
     bool was_operational;       ///< node state at the previous call (resume detection)
     md_wait_t wait;
-    uint64_t wait_sim_us;
-    uint64_t wait_wall_us;
+    uint64_t wait_sim_us;       ///< MD_WAIT_SIM: simulated time that ends the wait
+    uint32_t wait_step_us;      ///< MD_WAIT_SIM: the SIM_STEP's duration (anchored at the next SIM_CLOCK)
+    uint64_t wait_wall_us;      ///< MD_WAIT_WALL: platform time that ends the wait
     uint64_t timeout_wall_us;   ///< the current wait/answer ends here in platform time
+    uint64_t plant_alive_us;    ///< platform time of the plant's latest frame (lockstep timeouts)
     uint8_t sim_token;          ///< SIM_STEP Token
     uint32_t cycles;            ///< cycles completed, all electrodes
 } md_cycle_t;

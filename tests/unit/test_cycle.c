@@ -37,6 +37,7 @@ typedef struct {
     uint32_t last_status_spikes;
     uint16_t last_interval;
     uint64_t last_start_us;
+    uint64_t now_us;          /* platform time given to the controller with every frame */
 } plant_t;
 
 static plant_t P;
@@ -67,7 +68,7 @@ static double noise(void)
     return s * 1.7; /* sd ~ 1 */
 }
 
-static void deliver(const md_frame_t *f) { md_controller_on_frame(md_controller_instance(), f, 0u); }
+static void deliver(const md_frame_t *f) { md_controller_on_frame(md_controller_instance(), f, P.now_us); }
 
 static void frame_init(md_frame_t *f, uint32_t id, int len, int fd)
 {
@@ -353,6 +354,64 @@ static void test_tracker_parameter_selects_baseline(void)
     }
 }
 
+/* Lockstep: a recording whose answer is slow (a loaded host, a slow VM) does
+ * not time out while the plant's heartbeats keep arriving, whatever the
+ * platform time; once the plant falls silent the answer timeout fires 5 s
+ * after its last frame. */
+static void recording_request_unanswered(void)
+{
+    boot();
+    md_controller_t *c = md_controller_instance();
+    md_controller_poll(c, 0u);
+    const md_electrode_t *el = &c->cycle.el[0];
+    TEST_ASSERT_EQUAL_INT(MD_CYC_RECORDING, el->phase);
+    TEST_ASSERT_TRUE(c->cycle.lockstep);
+}
+
+static void test_lockstep_timeout_waits_for_a_live_plant(void)
+{
+    recording_request_unanswered();
+    md_controller_t *c = md_controller_instance();
+    const md_electrode_t *el = &c->cycle.el[0];
+    for (uint32_t k = 1u; k <= 600u; ++k) { /* 60 s of platform time, heartbeats every 100 ms */
+        P.now_us = (uint64_t)k * 100000u;
+        heartbeat(MD_CAN_HEARTBEAT_ACT_FRAME_ID, 0u);
+        heartbeat(MD_CAN_HEARTBEAT_HALL_FRAME_ID, 0u);
+        heartbeat(MD_CAN_HEARTBEAT_FE_FRAME_ID, MD_HB_FLAG_LOCKSTEP);
+        md_controller_poll(c, P.now_us);
+        P.n_out = 0u;
+    }
+    TEST_ASSERT_EQUAL_INT(MD_CYC_RECORDING, el->phase);
+    TEST_ASSERT_EQUAL_UINT32(0u, el->timeouts);
+    TEST_ASSERT_EQUAL_UINT32(0u, el->rec_failed);
+    const uint64_t last = P.now_us;
+    TEST_ASSERT_EQUAL_UINT64(last + 5000000u, md_cycle_next_deadline_us(&c->cycle, &c->node));
+    md_controller_poll(c, last + 4999999u); /* silent plant, not yet late */
+    TEST_ASSERT_EQUAL_UINT32(0u, el->timeouts);
+    md_controller_poll(c, last + 5000000u);
+    TEST_ASSERT_EQUAL_UINT32(1u, el->timeouts);
+    TEST_ASSERT_EQUAL_UINT32(1u, el->rec_failed);
+}
+
+/* Without lockstep the platform clock is the session's clock: the answer
+ * bound (2 × interval + 5 s) holds even while heartbeats arrive. */
+static void test_realtime_timeout_is_platform_time(void)
+{
+    recording_request_unanswered();
+    md_controller_t *c = md_controller_instance();
+    const md_electrode_t *el = &c->cycle.el[0];
+    for (uint32_t k = 1u; k <= 80u; ++k) { /* 8 s: past 2 × 1 s + 5 s */
+        P.now_us = (uint64_t)k * 100000u;
+        heartbeat(MD_CAN_HEARTBEAT_ACT_FRAME_ID, 0u);
+        heartbeat(MD_CAN_HEARTBEAT_HALL_FRAME_ID, 0u);
+        heartbeat(MD_CAN_HEARTBEAT_FE_FRAME_ID, 0u); /* no lockstep flag */
+        md_controller_poll(c, P.now_us);
+        P.n_out = 0u;
+    }
+    TEST_ASSERT_FALSE(c->cycle.lockstep);
+    TEST_ASSERT_EQUAL_UINT32(1u, el->timeouts);
+}
+
 static void test_numeric_failure_keeps_state(void)
 {
     boot();
@@ -407,6 +466,8 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_cycles_move_safely_with_telemetry);
     RUN_TEST(test_tracker_parameter_selects_baseline);
+    RUN_TEST(test_lockstep_timeout_waits_for_a_live_plant);
+    RUN_TEST(test_realtime_timeout_is_platform_time);
     RUN_TEST(test_numeric_failure_keeps_state);
     RUN_TEST(test_estop_stops_the_cycle);
     return UNITY_END();
