@@ -16,11 +16,10 @@
 ///    succeed, the same eigenvalues and total variance (relative 1e-9);
 ///    pca_project_all_i16 obeys the projection rule above.
 ///
-/// Open finding (docs/fuzzing.md, reproducer in crashes/fuzz_pca/): with
-/// values near 1e154 the covariance trace overflows to +inf and pca_fit
-/// returns MD_OK with total_var = inf. FUZZ_PCA_TRACE_BUG_OPEN tolerates
-/// exactly that symptom so the long runs can look for other bugs; set it to 0
-/// once pca.c rejects a non-finite trace (MD_E_NUMERIC).
+/// Fixed finding (docs/fuzzing.md, reproducer in crashes/fuzz_pca/): with
+/// values near 1e154 the covariance trace overflowed to +inf and pca_fit
+/// returned MD_OK with total_var = inf. FUZZ_PCA_TRACE_BUG_OPEN = 1 would
+/// tolerate exactly that symptom again; at 0 the reproducer guards the fix.
 #include <stdint.h>
 #include <string.h>
 
@@ -31,15 +30,15 @@
 #define FZ_PCA_STRIDE_MAX (MD_WAVE_LEN_MAX + 4u)
 
 #ifndef FUZZ_PCA_TRACE_BUG_OPEN
-#define FUZZ_PCA_TRACE_BUG_OPEN 1
+#define FUZZ_PCA_TRACE_BUG_OPEN 0 /* fixed: pca.c reports a non-finite trace as MD_E_NUMERIC */
 #endif
 
-/* Open finding (docs/fuzzing.md, crashes/fuzz_pca/identical_waveforms_*):
- * identical waveforms give MD_OK with a trace made of rounding error instead
- * of MD_E_DEGENERATE. Tolerated while 1: a success whose trace is below the
- * rounding floor of the data, (1e-12 · max|x|)^2 · d_w, is not checked. */
+/* Fixed finding (docs/fuzzing.md, crashes/fuzz_pca/identical_waveforms_*):
+ * identical waveforms gave MD_OK with a trace made of rounding error instead
+ * of MD_E_DEGENERATE (pca.h PCA_DEGENERATE_REL now). Tolerated while 1: a
+ * success whose trace is below (1e-12 · max|x|)^2 · d_w is not checked. */
 #ifndef FUZZ_PCA_DEGENERATE_BUG_OPEN
-#define FUZZ_PCA_DEGENERATE_BUG_OPEN 1
+#define FUZZ_PCA_DEGENERATE_BUG_OPEN 0 /* fixed: PCA_DEGENERATE_REL rounding floor */
 #endif
 
 static double g_wave[FZ_PCA_N_MAX * FZ_PCA_STRIDE_MAX];

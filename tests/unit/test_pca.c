@@ -133,6 +133,64 @@ static void test_degenerate_and_bad_input(void)
     TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
 }
 
+/* docs/fuzzing.md finding 2 (crashes/fuzz_pca/pca_trace_overflow_inf_total_var):
+ * every covariance entry is finite (5e307) but their sum overflows; MD_OK
+ * with total_var = inf and a wrong basis used to come out. */
+static void test_trace_overflow_is_numeric(void)
+{
+    const size_t dw = 10u;
+    for (size_t j = 0u; j < dw; ++j) {
+        g_wave[j] = 1e154;
+        g_wave[MD_WAVE_LEN_MAX + j] = 1e-321;
+    }
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, pca_fit(g_wave, 2u, MD_WAVE_LEN_MAX, dw, 1u, &g_work, &g_basis));
+    /* a single entry overflows */
+    g_wave[0] = 1e200;
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, pca_fit(g_wave, 2u, MD_WAVE_LEN_MAX, dw, 1u, &g_work, &g_basis));
+    /* the mean overflows (sum of two 1.5e308) */
+    for (size_t j = 0u; j < dw; ++j) {
+        g_wave[j] = 1.5e308;
+        g_wave[MD_WAVE_LEN_MAX + j] = 1.5e308 - 1e300 * (double)j;
+    }
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, pca_fit(g_wave, 2u, MD_WAVE_LEN_MAX, dw, 1u, &g_work, &g_basis));
+}
+
+/* Large but representable data is not refused: the known basis scaled by 1e100. */
+static void test_large_scale_data_still_fits(void)
+{
+    double u1[DW], u2[DW], m[DW];
+    make_data(u1, u2, m);
+    for (size_t i = 0u; i < N_PTS * MD_WAVE_LEN_MAX; ++i) {
+        g_wave[i] *= 1e100;
+    }
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(g_wave, N_PTS, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+    const double f = (double)N_PTS / (double)(N_PTS - 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 9.0 * f, g_basis.eigval[0] * 1e-200);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 10.0 * f, g_basis.total_var * 1e-200);
+}
+
+/* docs/fuzzing.md finding 3 (crashes/fuzz_pca/identical_waveforms_ok_instead_of_degenerate):
+ * 25 identical windows of 31354 counts x 0.195 uV (a saturated front-end):
+ * the rounded mean leaves a trace of ~1e-23, which used to give MD_OK and a
+ * basis of rounding noise. One count of difference is real data again. */
+static void test_identical_windows_within_rounding_are_degenerate(void)
+{
+    static int16_t w16[25u * 20u];
+    const size_t n = 25u, dw = 20u;
+    const double gain = 0.195;
+    for (size_t i = 0u; i < n * dw; ++i) {
+        w16[i] = 31354;
+        g_wave[(i / dw) * MD_WAVE_LEN_MAX + i % dw] = gain * 31354.0;
+    }
+    TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, pca_fit_i16(w16, n, dw, dw, gain, 2u, &g_work, &g_basis));
+    TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, pca_fit(g_wave, n, MD_WAVE_LEN_MAX, dw, 2u, &g_work, &g_basis));
+    w16[7u * dw + 3u] = 31353;
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit_i16(w16, n, dw, dw, gain, 1u, &g_work, &g_basis));
+    /* one count in one of 25 windows: variance gain^2 (1/25)(24/25)·25/24 on one axis */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, gain * gain / 25.0, g_basis.eigval[0]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1.0, fabs(g_basis.b[3]));
+}
+
 static void test_noisy_spikes_d3(void)
 {
     /* random data with a dominant direction: d = 3 rows are orthonormal */
@@ -168,5 +226,8 @@ int main(void)
     RUN_TEST(test_projection_is_b_times_x);
     RUN_TEST(test_degenerate_and_bad_input);
     RUN_TEST(test_noisy_spikes_d3);
+    RUN_TEST(test_trace_overflow_is_numeric);
+    RUN_TEST(test_large_scale_data_still_fits);
+    RUN_TEST(test_identical_windows_within_rounding_are_degenerate);
     return UNITY_END();
 }

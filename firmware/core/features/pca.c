@@ -84,6 +84,44 @@ static void pca_fix_sign(double *row, size_t d_w)
     }
 }
 
+/* Largest magnitude of any sample: the scale of the rounding floor. */
+static double pca_max_abs(const pca_src_t *src, size_t n, size_t d_w)
+{
+    double tmp[MD_WAVE_LEN_MAX];
+    double big = 0.0;
+    for (size_t i = 0u; i < n; ++i) {
+        const double *x = pca_row(src, i, d_w, tmp);
+        for (size_t j = 0u; j < d_w; ++j) {
+            big = fmax(big, fabs(x[j]));
+        }
+    }
+    return big;
+}
+
+/* Trace of the covariance after checking that it is usable: MD_E_NUMERIC if
+ * the mean, an entry or the sum overflowed; MD_E_DEGENERATE if the spread is
+ * zero or rounding error (PCA_DEGENERATE_REL). */
+static md_status_t pca_check_cov(const pca_src_t *src, size_t n, size_t d_w, const double *mean, const double *cov,
+                                 double *trace)
+{
+    if (!linalg_all_finite(mean, d_w) || !linalg_all_finite(cov, d_w * d_w)) {
+        return MD_E_NUMERIC;
+    }
+    double t = 0.0;
+    for (size_t a = 0u; a < d_w; ++a) {
+        t += cov[a * d_w + a];
+    }
+    if (!isfinite(t)) {
+        return MD_E_NUMERIC;
+    }
+    /* compared as an RMS so that the floor cannot overflow for large data */
+    if (!(t > 0.0) || !(sqrt(t / (double)d_w) > PCA_DEGENERATE_REL * pca_max_abs(src, n, d_w))) {
+        return MD_E_DEGENERATE;
+    }
+    *trace = t;
+    return MD_OK;
+}
+
 static md_status_t pca_fit_src(const pca_src_t *src, size_t n, size_t d_w, size_t d, pca_work_t *work,
                                pca_basis_t *basis)
 {
@@ -101,15 +139,32 @@ static md_status_t pca_fit_src(const pca_src_t *src, size_t n, size_t d_w, size_
     }
     pca_covariance(src, n, d_w, basis->mean, work->cov);
     double trace = 0.0;
-    for (size_t a = 0u; a < d_w; ++a) {
-        trace += work->cov[a * d_w + a];
+    const md_status_t cst = pca_check_cov(src, n, d_w, basis->mean, work->cov, &trace);
+    if (cst != MD_OK) {
+        return cst;
     }
-    if (!(trace > 0.0)) {
-        return MD_E_DEGENERATE;
+    /* The eigen-solver's convergence test sums squared entries, which
+     * overflows above ~1e154 and underflows below ~1e-154 (it then stops
+     * at once with the diagonal). Scaling by a power of two near the
+     * largest entry is exact and keeps every square in range. */
+    double cmax = 0.0;
+    for (size_t i = 0u; i < d_w * d_w; ++i) {
+        cmax = fmax(cmax, fabs(work->cov[i]));
+    }
+    int e2 = 0;
+    (void)frexp(cmax, &e2);
+    for (size_t i = 0u; i < d_w * d_w; ++i) {
+        work->cov[i] = ldexp(work->cov[i], -e2);
     }
     const md_status_t st = linalg_sym_eigen(work->cov, d_w, work->vals, work->vecs, PCA_JACOBI_SWEEPS);
     if (st < 0) {
         return st;
+    }
+    for (size_t k = 0u; k < d_w; ++k) {
+        work->vals[k] = ldexp(work->vals[k], e2);
+    }
+    if (!linalg_all_finite(work->vals, d_w) || !linalg_all_finite(work->vecs, d_w * d_w)) {
+        return MD_E_NUMERIC;   /* Jacobi rotations can overflow on entries near DBL_MAX */
     }
     basis->d = d;
     basis->d_w = d_w;

@@ -23,6 +23,13 @@
 #include "md_config.h"
 
 #define PCA_JACOBI_SWEEPS 30u  ///< Jacobi sweep bound (quadratic convergence: ~6-10 suffice at n = 48)
+/// Waveforms whose RMS spread sqrt(total_var / d_w) is at most this fraction
+/// of their largest magnitude are equal within rounding: the mean is a
+/// rounded sum / n, so identical windows leave deviations of up to
+/// ~n·DBL_EPSILON·max|x| (< 1e-11·max|x| for every n accepted), and a basis
+/// fitted to them is noise. Real windows (int16 counts, >= 1 count apart out
+/// of <= 32768) are >= 3e-5 relative apart.
+#define PCA_DEGENERATE_REL 1e-10
 
 /// A PCA basis of one interval.
 typedef struct {
@@ -44,8 +51,12 @@ typedef struct {
 /// Fits the basis to n waveforms: waveform i is wave[i*stride .. i*stride+d_w).
 /// Preconditions: n >= 2, d_w in [d, MD_WAVE_LEN_MAX], stride >= d_w,
 /// 1 <= d <= MD_FEAT_DIM_MAX. MD_E_DEGENERATE if all waveforms are equal
-/// (zero variance), MD_E_NUMERIC on non-finite input, MD_E_NOCONVERGE from
-/// the eigen-solver. O(n d_w^2 + sweeps d_w^3).
+/// within rounding (sqrt(total_var / d_w) <= PCA_DEGENERATE_REL · max|x|,
+/// zero variance included), MD_E_NUMERIC on non-finite input or when the
+/// mean, a covariance entry, the trace or an eigenpair is not finite
+/// (magnitudes near sqrt(DBL_MAX) overflow), MD_E_NOCONVERGE from the
+/// eigen-solver. Nothing non-finite is reported with MD_OK.
+/// O(n d_w^2 + sweeps d_w^3).
 md_status_t pca_fit(const double *wave, size_t n, size_t stride, size_t d_w, size_t d, pca_work_t *work,
                     pca_basis_t *basis);
 
