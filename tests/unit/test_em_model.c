@@ -79,11 +79,34 @@ static void test_volume_and_sort(void)
     TEST_ASSERT_EQUAL_STRING("EM_FAIL_HESSIAN", em_reason_name(EM_FAIL_HESSIAN));
 }
 
+/* The tabulated outlier density equals the direct one for the tabulated
+ * points, and is not used for other data. */
+static void test_outlier_table(void)
+{
+    const double xi[4] = {0.5, 0.1, 0.1, 0.25};
+    const double y[6] = {1.0, -0.5, 0.0, 0.0, 3.0, 2.0};
+    const double y2[6] = {2.0, -1.5, 1.0, 0.0, 0.0, 2.0};
+    em_outlier_t o;
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_outlier_init(2u, xi, 80.0, &o));
+    const em_data_t d = {y, 3u, 2u};
+    const em_data_t d2 = {y2, 3u, 2u};
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_outlier_tabulate(&o, &d));
+    for (size_t i = 0u; i < 3u; ++i) {
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, em_outlier_logpdf(&o, &y[2u * i]), em_outlier_logpdf_at(&o, &d, i));
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, em_outlier_logpdf(&o, &y2[2u * i]), em_outlier_logpdf_at(&o, &d2, i));
+    }
+    const em_data_t d1 = {y, 3u, 1u};
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_outlier_tabulate(&o, &d1));
+    TEST_ASSERT_NULL(o.tab_y);
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_outlier_tabulate(&o, NULL));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_outlier_density);
     RUN_TEST(test_mean_prior_and_zeta);
     RUN_TEST(test_volume_and_sort);
+    RUN_TEST(test_outlier_table);
     return UNITY_END();
 }

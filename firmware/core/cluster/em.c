@@ -59,7 +59,7 @@ void em_options_default(em_options_t *opt)
 {
     if (opt != NULL) {
         opt->max_iter = MD_EM_MAX_ITER;
-        opt->tol = 1e-10;
+        opt->tol = MD_EM_TOL_REL;
     }
 }
 
@@ -108,9 +108,16 @@ static md_status_t em_build_cache(const em_params_t *p, em_cache_t *c)
 /* E-step: z_ig (after eq. 3.13) in the log domain; returns log p(Y|Θ) (eq. 3.5).
  * One log-sum-exp per point about its largest term: G + 1 exp and one log per
  * point; the log-weights log π_g are taken once per iteration. */
+/* Soft counts n_g and weighted sums Σ_i z_ig y_i of the M-step, accumulated in the same pass. */
+typedef struct {
+    double n_soft[EM_G_MAX + 1u];
+    double sum[EM_G_MAX][EM_D_MAX];
+} em_moments_t;
+
 static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
-                       const em_cache_t *c, double *z)
+                       const em_cache_t *c, double *z, em_moments_t *mom)
 {
+    memset(mom, 0, sizeof *mom);
     const size_t k = p->g + 1u;
     double log_pi[EM_G_MAX + 1u];
     log_pi[0] = em_safe_log(p->pi0);
@@ -134,33 +141,18 @@ static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const
             sum += zi[g];
         }
         const double inv = 1.0 / sum;
-        for (size_t g = 0u; g < k; ++g) {
+        zi[0] *= inv;
+        mom->n_soft[0] += zi[0];
+        for (size_t g = 1u; g < k; ++g) {
             zi[g] *= inv;
+            mom->n_soft[g] += zi[g];
+            for (size_t j = 0u; j < data->d; ++j) {
+                mom->sum[g - 1u][j] += zi[g] * y[j];
+            }
         }
         loglik += hi + log(sum);
     }
     return loglik;
-}
-
-/* Soft counts n_g and weighted sums Σ_i z_ig y_i. */
-static void em_moments(const em_data_t *data, const double *z, size_t g_count, double *n_soft,
-                       double sum[][EM_D_MAX])
-{
-    const size_t k = g_count + 1u;
-    memset(n_soft, 0, k * sizeof(double));
-    for (size_t g = 0u; g < g_count; ++g) {
-        memset(sum[g], 0, sizeof sum[g]);
-    }
-    for (size_t i = 0u; i < data->n; ++i) {
-        n_soft[0] += z[i * k];
-        for (size_t g = 0u; g < g_count; ++g) {
-            const double w = z[i * k + g + 1u];
-            n_soft[g + 1u] += w;
-            for (size_t j = 0u; j < data->d; ++j) {
-                sum[g][j] += w * data->y[i * data->d + j];
-            }
-        }
-    }
 }
 
 /* eq. 3.15: MAP mean with Σ_g^{-1} of the previous iteration (Remark 3.6). */
@@ -207,9 +199,15 @@ static void em_scatter(const em_data_t *data, const double *z, size_t k, size_t 
             r[j] = data->y[i * d + j] - mean[j];
         }
         for (size_t a = 0u; a < d; ++a) {
-            for (size_t b = 0u; b < d; ++b) {
-                w[a * d + b] += zi * r[a] * r[b];
+            const double zr = zi * r[a];
+            for (size_t b = 0u; b <= a; ++b) {
+                w[a * d + b] += zr * r[b];
             }
+        }
+    }
+    for (size_t a = 0u; a < d; ++a) { /* symmetric: mirror the lower triangle */
+        for (size_t b = a + 1u; b < d; ++b) {
+            w[a * d + b] = w[b * d + a];
         }
     }
 }
@@ -257,12 +255,10 @@ static em_reason_t em_shared_volume(const em_data_t *data, const double *z, cons
 
 /* M-step of §3.3.3.2; zeta holds ζ at the current means, c the previous Σ. */
 static em_reason_t em_mstep(const em_data_t *data, const em_prior_t *prior, const double *z,
-                            const em_cache_t *c, double zeta[][EM_J_MAX + 1u],
-                            em_params_t *p)
+                            const em_moments_t *mom, const em_cache_t *c,
+                            double zeta[][EM_J_MAX + 1u], em_params_t *p)
 {
-    double n_soft[EM_G_MAX + 1u];
-    double sum[EM_G_MAX][EM_D_MAX];
-    em_moments(data, z, p->g, n_soft, sum);
+    const double *n_soft = mom->n_soft;
     const double n = (double)data->n;
     p->pi0 = n_soft[0] / n;
     for (size_t g = 0u; g < p->g; ++g) {
@@ -270,7 +266,7 @@ static em_reason_t em_mstep(const em_data_t *data, const em_prior_t *prior, cons
             return EM_FAIL_EMPTY_CLUSTER;
         }
         p->pi[g] = n_soft[g + 1u] / n;
-        if (em_map_mean(prior, c->inv[g], n_soft[g + 1u], sum[g], zeta[g], p->mean[g]) != MD_OK) {
+        if (em_map_mean(prior, c->inv[g], n_soft[g + 1u], mom->sum[g], zeta[g], p->mean[g]) != MD_OK) {
             return EM_FAIL_NUMERIC;
         }
     }
@@ -352,11 +348,10 @@ static double em_log_post(const em_prior_t *prior, const em_params_t *p, double 
     return lp;
 }
 
-/* Converged, or bounded out; fills the outputs that depend on the final z. */
-static md_status_t em_finish(const em_data_t *data, const double *z, bool converged, em_fit_t *out)
+/* Converged, or bounded out; n_g of the final z (the last E-step's moments). */
+static md_status_t em_finish(const em_moments_t *mom, bool converged, em_fit_t *out)
 {
-    double sum[EM_G_MAX][EM_D_MAX];
-    em_moments(data, z, out->params.g, out->n_soft, sum);
+    memcpy(out->n_soft, mom->n_soft, sizeof out->n_soft);
     if (!isfinite(out->log_post) || !isfinite(out->log_lik)) {
         return em_fail(out, MD_E_NUMERIC, EM_FAIL_NUMERIC);
     }
@@ -379,6 +374,8 @@ md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_
     }
     em_reason_t r = em_init_params(data, seed_labels, g, &out->params);
     em_cache_t cache;
+    em_moments_t mom;
+    memset(&mom, 0, sizeof mom);
     double lp_prev = 0.0;
     bool converged = false;
     for (uint32_t it = 0u; (r == EM_OK) && (it <= opt->max_iter); ++it) {
@@ -386,7 +383,7 @@ md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_
             r = EM_FAIL_NUMERIC;
             break;
         }
-        out->log_lik = em_estep(data, outlier, &out->params, &cache, z);
+        out->log_lik = em_estep(data, outlier, &out->params, &cache, z, &mom);
         out->log_post = em_log_post(prior, &out->params, out->log_lik, out->zeta);
         converged = (it > 0u) && (fabs(out->log_post - lp_prev) <=
                                   opt->tol * fmax(1.0, fabs(out->log_post)));
@@ -394,7 +391,7 @@ md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_
             break;
         }
         lp_prev = out->log_post;
-        r = em_mstep(data, prior, z, &cache, out->zeta, &out->params);
+        r = em_mstep(data, prior, z, &mom, &cache, out->zeta, &out->params);
         out->iterations = it + 1u;
     }
     if (r != EM_OK) {
@@ -403,7 +400,7 @@ md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_
                                                       : MD_E_DEGENERATE;
         return em_fail(out, st, r);
     }
-    return em_finish(data, z, converged, out);
+    return em_finish(&mom, converged, out);
 }
 
 void em_labels(const double *z, size_t n, size_t g, uint8_t *label)

@@ -29,7 +29,7 @@ typedef struct {
     double tol;        ///< stop when |Δ log-posterior| ≤ tol · max(1, |log-posterior|)
 } em_options_t;
 
-/// Defaults: max_iter = MD_EM_MAX_ITER, tol = 1e-10.
+/// Defaults: max_iter = MD_EM_MAX_ITER, tol = MD_EM_TOL_REL (md_config.h).
 void em_options_default(em_options_t *opt);
 
 /// Result of one fit of one model class.
