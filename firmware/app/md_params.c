@@ -59,7 +59,7 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                           "SFSM gamma1: isolation distance to follow the SNR gradient (< gamma2)"},
     [MD_P_SFSM_GAMMA2] = {0x2031u, "sfsm_gamma2", "", 0.1, 100.0, 3.0, MD_PARAM_F_MOTION,
                           "SFSM gamma2: isolation distance to declare isolation at the peak (< gamma3)"},
-    [MD_P_SFSM_GAMMA3] = {0x2032u, "sfsm_gamma3", "", 0.1, 100.0, 5.0, MD_PARAM_F_MOTION,
+    [MD_P_SFSM_GAMMA3] = {0x2032u, "sfsm_gamma3", "", 0.1, 100.0, 12.0, MD_PARAM_F_MOTION,
                           "SFSM gamma3: isolation distance to declare isolation at once"},
     [MD_P_SFSM_WAIT_R] = {0x2033u, "sfsm_wait_r", "", 1.0, 8.0, 3.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
                           "SFSM R: cycles a WAIT condition must hold"},

@@ -8,10 +8,17 @@
 
 /* A step shortened below this by the depth window counts as blocked. */
 #define SFSM_EDGE_UM 0.5
+/* SNRs within this depth count as taken at one position (servo tolerance 2 µm). */
+#define SFSM_SAME_DEPTH_UM 2.5
 
 #define B(s) ((uint16_t)(1u << (unsigned)(s)))
 #define SFSM_ALL ((uint16_t)((1u << (unsigned)SFSM_STATE_COUNT) - 1u))
 #define SFSM_RUNNING ((uint16_t)(SFSM_ALL & (uint16_t)~B(SFSM_HALTED)))
+/* Isolated and Re-Isolate modes: a reference neuron is held. */
+#define SFSM_ISOLATED_MODES \
+    ((uint16_t)(B(SFSM_NEURON_ISOLATED) | B(SFSM_REESTIMATE_GRADIENT) | B(SFSM_REISOLATE_NEURON)))
+/* Running states without a reference: Ω3 declares a first isolation there. */
+#define SFSM_SEEKING ((uint16_t)(SFSM_RUNNING & (uint16_t)~SFSM_ISOLATED_MODES))
 
 /* The transition table, in priority order: each cycle the first row whose
  * from-state matches and whose condition has held for its WAIT length fires.
@@ -20,9 +27,8 @@
 static const sfsm_row_t SFSM_TABLE[] = {
     {SFSM_RUNNING, SFSM_C_HALT, SFSM_W_NONE, SFSM_HALTED, SFSM_A_NONE},
     {B(SFSM_HALTED) | B(SFSM_WINDOW_LIMIT), SFSM_C_RESUME, SFSM_W_NONE, SFSM_SPIKE_SEARCH, SFSM_A_RESTART},
-    {(uint16_t)(SFSM_RUNNING & (uint16_t)~B(SFSM_NEURON_ISOLATED)), SFSM_C_OMEGA3, SFSM_W_NONE, SFSM_NEURON_ISOLATED,
-     SFSM_A_DECLARE},
-    {B(SFSM_NEURON_ISOLATED), SFSM_C_OMEGA3_OTHER, SFSM_W_NONE, SFSM_NEURON_ISOLATED, SFSM_A_DECLARE},
+    {SFSM_SEEKING, SFSM_C_OMEGA3, SFSM_W_NONE, SFSM_NEURON_ISOLATED, SFSM_A_DECLARE},
+    {SFSM_ISOLATED_MODES, SFSM_C_OMEGA3_OTHER, SFSM_W_NONE, SFSM_NEURON_ISOLATED, SFSM_A_DECLARE},
     {B(SFSM_ISOLATE_NEURON) | B(SFSM_REISOLATE_NEURON), SFSM_C_LIMIT_ISOLATED, SFSM_W_NONE, SFSM_NEURON_ISOLATED,
      SFSM_A_DECLARE},
     {B(SFSM_SPIKE_SEARCH) | B(SFSM_GRADIENT_SEARCH), SFSM_C_LIMIT_FIRST, SFSM_W_NONE, SFSM_SPIKE_SEARCH,
@@ -39,8 +45,9 @@ static const sfsm_row_t SFSM_TABLE[] = {
     {B(SFSM_ISOLATE_NEURON), SFSM_C_CURVE_NOT_READY, SFSM_W_NONE, SFSM_GRADIENT_SEARCH, SFSM_A_NONE},
     {B(SFSM_ISOLATE_NEURON), SFSM_C_IQM_LOW, SFSM_W_R, SFSM_GRADIENT_SEARCH, SFSM_A_NONE},
     {B(SFSM_NEURON_ISOLATED), SFSM_C_SNR_DROP, SFSM_W_R, SFSM_REESTIMATE_GRADIENT, SFSM_A_NONE},
-    {B(SFSM_NEURON_ISOLATED) | B(SFSM_REESTIMATE_GRADIENT) | B(SFSM_REISOLATE_NEURON), SFSM_C_OTHER_DOMINANT,
-     SFSM_W_R, SFSM_GRADIENT_SEARCH, SFSM_A_NONE},
+    {B(SFSM_NEURON_ISOLATED), SFSM_C_OTHER_DOMINANT, SFSM_W_R, SFSM_NEURON_ISOLATED, SFSM_A_ADOPT},
+    {B(SFSM_REESTIMATE_GRADIENT), SFSM_C_OTHER_DOMINANT, SFSM_W_R, SFSM_REESTIMATE_GRADIENT, SFSM_A_ADOPT},
+    {B(SFSM_REISOLATE_NEURON), SFSM_C_OTHER_DOMINANT, SFSM_W_R, SFSM_REISOLATE_NEURON, SFSM_A_ADOPT},
     {B(SFSM_REESTIMATE_GRADIENT) | B(SFSM_REISOLATE_NEURON), SFSM_C_SNR_RESTORED, SFSM_W_NONE, SFSM_NEURON_ISOLATED,
      SFSM_A_RESTORE},
     {B(SFSM_REESTIMATE_GRADIENT), SFSM_C_CURVE_VIABLE, SFSM_W_R, SFSM_REISOLATE_NEURON, SFSM_A_NONE},
@@ -66,7 +73,7 @@ static const sfsm_state_info_t SFSM_INFO[SFSM_STATE_COUNT] = {
     [SFSM_NEURON_ISOLATED] = {"Neuron Isolated", "Isolated", "none (hold)",
                               "none (the transition's action sets the reference)"},
     [SFSM_REESTIMATE_GRADIENT] = {"Re-Estimate Gradient", "Re-Isolate",
-                                  "-Δresample (retract); hold while the isolated track is not dominant",
+                                  "-Δresample (retract); hold while no dominant track",
                                   "ask the caller to restart the isolated track's SNR curve"},
     [SFSM_REISOLATE_NEURON] = {"Re-Isolate Neuron", "Re-Isolate", "as Isolate Neuron", "none"},
     [SFSM_WINDOW_LIMIT] = {"Window Limit", "ours", "none (hold)", "drop the isolation reference"},
@@ -77,7 +84,7 @@ static const char *const SFSM_COND_DOC[SFSM_COND_COUNT] = {
     [SFSM_C_HALT] = "e-stop or fault flag, or invalid input",
     [SFSM_C_RESUME] = "operator resume, no e-stop, no fault, valid input",
     [SFSM_C_OMEGA3] = "IQM >= γ3 (Ω3)",
-    [SFSM_C_OMEGA3_OTHER] = "another track dominant with IQM >= γ3",
+    [SFSM_C_OMEGA3_OTHER] = "another track dominant with IQM >= γ3 and SNR > isolation SNR",
     [SFSM_C_LIMIT_ISOLATED] = "step blocked by the window edge, IQM >= γ2",
     [SFSM_C_LIMIT_FIRST] = "step blocked by the window edge, no reversal yet",
     [SFSM_C_LIMIT_AGAIN] = "step blocked by the window edge after a reversal",
@@ -88,8 +95,8 @@ static const char *const SFSM_COND_DOC[SFSM_COND_COUNT] = {
     [SFSM_C_CURVE_NOT_READY] = "curve has < k0 observations",
     [SFSM_C_CONVERGED_ISOLATED] = "eq. 2.1 converged and IQM >= γ2",
     [SFSM_C_IQM_LOW] = "IQM < γ1 (Ω0)",
-    [SFSM_C_SNR_DROP] = "SNR < drop fraction × isolation SNR",
-    [SFSM_C_SNR_RESTORED] = "SNR >= isolation SNR",
+    [SFSM_C_SNR_DROP] = "dominant SNR (any track) < drop fraction × isolation SNR",
+    [SFSM_C_SNR_RESTORED] = "dominant SNR (any track) >= isolation SNR",
     [SFSM_C_OTHER_DOMINANT] = "another track is dominant",
 };
 
@@ -97,8 +104,9 @@ static const char *const SFSM_ACTION_DOC[SFSM_ACTION_COUNT] = {
     [SFSM_A_NONE] = "-",
     [SFSM_A_RESTART] = "search direction := initial; reversals := 0",
     [SFSM_A_REVERSE] = "reverse the search direction; reversals += 1",
-    [SFSM_A_DECLARE] = "reference := dominant track, mean SNR of its last R cycles, depth",
+    [SFSM_A_DECLARE] = "reference := dominant track, mean SNR of its last R cycles at this depth, depth",
     [SFSM_A_RESTORE] = "keep the original reference",
+    [SFSM_A_ADOPT] = "reference track := dominant track (same reference SNR and depth)",
 };
 
 static const char *const SFSM_REASON_NAME[SFSM_REASON_COUNT] = {
@@ -161,7 +169,7 @@ void sfsm_config_default(sfsm_config_t *cfg)
     cfg->step_max_um = 30.0;
     cfg->gamma1 = 2.0;
     cfg->gamma2 = 3.0;
-    cfg->gamma3 = 5.0;
+    cfg->gamma3 = 12.0;
     cfg->snr_drop_frac = 0.85;
     cfg->snr_min = 9.0;
     cfg->wait_r = 3u;
@@ -229,7 +237,8 @@ static bool sfsm_cond_holds(const sfsm_t *sm, const sfsm_input_t *in, const sfsm
     case SFSM_C_HALT: return !v || in->estop || in->fault;
     case SFSM_C_RESUME: return v && in->resume && !in->estop && !in->fault;
     case SFSM_C_OMEGA3: return v && f->dom && (in->iqm >= k->gamma3);
-    case SFSM_C_OMEGA3_OTHER: return v && f->dom && !f->ours && (in->iqm >= k->gamma3);
+    case SFSM_C_OMEGA3_OTHER:
+        return v && f->dom && !f->ours && (in->iqm >= k->gamma3) && (in->snr > sm->ref_snr);
     case SFSM_C_LIMIT_ISOLATED: return v && f->at_limit && f->ours && (in->iqm >= k->gamma2);
     case SFSM_C_LIMIT_FIRST: return v && f->at_limit && (sm->reversals == 0u);
     case SFSM_C_LIMIT_AGAIN: return v && f->at_limit && (sm->reversals > 0u);
@@ -240,8 +249,11 @@ static bool sfsm_cond_holds(const sfsm_t *sm, const sfsm_input_t *in, const sfsm
     case SFSM_C_CURVE_NOT_READY: return v && f->ours && !s->ready;
     case SFSM_C_CONVERGED_ISOLATED: return v && f->ours && s->ready && s->converged && (in->iqm >= k->gamma2);
     case SFSM_C_IQM_LOW: return v && f->ours && (in->iqm < k->gamma1);
-    case SFSM_C_SNR_DROP: return v && sm->has_ref && f->ours && (in->snr < k->snr_drop_frac * sm->ref_snr);
-    case SFSM_C_SNR_RESTORED: return v && sm->has_ref && f->ours && (in->snr >= sm->ref_snr);
+    /* Identity-free on purpose (thesis: "the dominant neuron's SNR"): the
+     * tracker may split one neuron into two alternating IDs, which must not
+     * hide a drop; a louder other neuron never counts as one. */
+    case SFSM_C_SNR_DROP: return v && sm->has_ref && f->dom && (in->snr < k->snr_drop_frac * sm->ref_snr);
+    case SFSM_C_SNR_RESTORED: return v && sm->has_ref && f->dom && (in->snr >= sm->ref_snr);
     case SFSM_C_OTHER_DOMINANT: return v && f->dom && !f->ours;
     case SFSM_COND_COUNT: /* MISRA 16.4 default; -Wswitch-enum still checks every enumerator */
     default: return false;
@@ -286,8 +298,8 @@ static double sfsm_policy(const sfsm_t *sm, const sfsm_input_t *in, const sfsm_f
     case SFSM_ISOLATE_NEURON:
     case SFSM_REISOLATE_NEURON: return sfsm_optimiser_step(sm, in, f, why);
     case SFSM_REESTIMATE_GRADIENT: /* retract: decompression moves neurons up (§2.2.4) */
-        *why = f->ours ? SFSM_R_RETRACT : SFSM_R_NO_DOMINANT_HOLD;
-        return f->ours ? -sm->cfg.step_resample_um : 0.0;
+        *why = f->dom ? SFSM_R_RETRACT : SFSM_R_NO_DOMINANT_HOLD;
+        return f->dom ? -sm->cfg.step_resample_um : 0.0;
     case SFSM_NEURON_ISOLATED: *why = SFSM_R_ISOLATED_HOLD; return 0.0;
     case SFSM_WINDOW_LIMIT: *why = SFSM_R_WINDOW_HOLD; return 0.0;
     case SFSM_HALTED:
@@ -313,12 +325,18 @@ static double sfsm_clamp(const sfsm_t *sm, const sfsm_input_t *in, double step)
     return fmin(fmax(v, -sm->cfg.step_max_um), sm->cfg.step_max_um);
 }
 
+/* The reference SNR is what the neuron gives at the isolation depth: the
+ * window of recent SNRs restarts with another track or after a move (a
+ * depth change beyond the servo's tolerance), so an Ω3 declared right after
+ * a step does not average in the weaker SNRs of shallower positions. */
 static void sfsm_note_snr(sfsm_t *sm, const sfsm_input_t *in)
 {
-    if ((sm->recent_n == 0u) || (sm->recent_track != in->dominant_track)) {
+    if ((sm->recent_n == 0u) || (sm->recent_track != in->dominant_track) ||
+        (fabs(in->depth_um - sm->recent_depth_um) > SFSM_SAME_DEPTH_UM)) {
         sm->recent_n = 0u;
         sm->recent_head = 0u;
         sm->recent_track = in->dominant_track;
+        sm->recent_depth_um = in->depth_um;
     }
     sm->recent_snr[sm->recent_head] = in->snr;
     sm->recent_head = (uint8_t)((sm->recent_head + 1u) % sm->cfg.wait_r);
@@ -353,6 +371,7 @@ static void sfsm_do_action(sfsm_t *sm, const sfsm_input_t *in, sfsm_action_t a)
         sm->ref_snr = (sm->recent_n > 0u) ? sfsm_recent_mean(sm) : in->snr;
         sm->ref_depth_um = in->depth_um;
         break;
+    case SFSM_A_ADOPT: sm->ref_track = in->dominant_track; break;
     case SFSM_A_RESTORE:
     case SFSM_A_NONE:
     case SFSM_ACTION_COUNT: /* MISRA 16.4 default */

@@ -46,7 +46,7 @@ typedef enum {
     SFSM_C_HALT = 0,            ///< e-stop or fault flag, or invalid input
     SFSM_C_RESUME,              ///< operator resume, no e-stop/fault, valid input
     SFSM_C_OMEGA3,              ///< dominant track with IQM >= γ3 (Table 2.1 Ω3)
-    SFSM_C_OMEGA3_OTHER,        ///< Ω3 on a track other than the isolated one
+    SFSM_C_OMEGA3_OTHER,        ///< Ω3 on a louder track than the isolated one (SNR > reference)
     SFSM_C_LIMIT_ISOLATED,      ///< at the window edge, IQM >= γ2
     SFSM_C_LIMIT_FIRST,         ///< at the window edge, no reversal yet
     SFSM_C_LIMIT_AGAIN,         ///< at the window edge after a reversal
@@ -57,8 +57,8 @@ typedef enum {
     SFSM_C_CURVE_NOT_READY,     ///< the dominant track's curve has < k0 observations
     SFSM_C_CONVERGED_ISOLATED,  ///< eq. 2.1 converged and IQM >= γ2
     SFSM_C_IQM_LOW,             ///< IQM < γ1 (Ω0)
-    SFSM_C_SNR_DROP,            ///< isolated track's SNR < drop fraction × its isolation SNR
-    SFSM_C_SNR_RESTORED,        ///< isolated track's SNR >= its isolation SNR
+    SFSM_C_SNR_DROP,            ///< dominant SNR (any track) < drop fraction × the isolation SNR
+    SFSM_C_SNR_RESTORED,        ///< dominant SNR (any track) >= the isolation SNR
     SFSM_C_OTHER_DOMINANT,      ///< the dominant track is not the isolated one
     SFSM_COND_COUNT
 } sfsm_cond_t;
@@ -75,8 +75,9 @@ typedef enum {
     SFSM_A_NONE = 0,
     SFSM_A_RESTART,   ///< search direction back to the initial one, reversal count 0
     SFSM_A_REVERSE,   ///< reverse the search direction, count the reversal
-    SFSM_A_DECLARE,   ///< isolation reference := dominant track, its recent mean SNR, depth
+    SFSM_A_DECLARE,   ///< isolation reference := dominant track, its recent mean SNR here, depth
     SFSM_A_RESTORE,   ///< keep the original isolation reference
+    SFSM_A_ADOPT,     ///< reference track := dominant track; reference SNR and depth kept
     SFSM_ACTION_COUNT
 } sfsm_action_t;
 
@@ -123,7 +124,7 @@ typedef struct {
     double step_max_um;       ///< Δmax: no step ever exceeds it (default 30 µm)
     double gamma1;            ///< γ1: IQM to follow the gradient (default 2)
     double gamma2;            ///< γ2: IQM to declare isolation at the peak (default 3)
-    double gamma3;            ///< γ3: IQM to declare isolation at once (default 5)
+    double gamma3;            ///< γ3: IQM to declare isolation at once (default 12)
     double snr_drop_frac;     ///< leave Neuron Isolated below this × isolation SNR (thesis 0.85)
     double snr_min;           ///< a track below this SNR is noise floor, never dominant (default 9, ours)
     uint8_t wait_r;           ///< R of WAIT transitions (default 3)
@@ -171,10 +172,11 @@ typedef struct {
     double ref_snr;                  ///< SNR at isolation (mean over the last R cycles)
     double ref_depth_um;
     uint8_t wait[SFSM_ROWS_MAX];     ///< consecutive-cycle counters, one per table row
-    double recent_snr[SFSM_R_MAX];   ///< last SNRs of recent_track
+    double recent_snr[SFSM_R_MAX];   ///< last SNRs of recent_track, all at recent_depth_um
     uint8_t recent_n;
     uint8_t recent_head;
     uint32_t recent_track;
+    double recent_depth_um;          ///< depth of those SNRs (a move restarts the window)
     uint32_t cycles;
     uint32_t transitions;
     uint32_t bad_inputs;             ///< cycles rejected by input validation
