@@ -150,6 +150,29 @@ def main():
         p = g.write(d, "auto.log")
         if run(p, "--auto-start")[0] != 0 or run(p)[0] != 1:
             failures.append("auto-start handling")
+        # a full Delta_max retract takes more steps than an advance (retract steps are shorter)
+        g = clean()
+        g.cycle(1010.0, 980.0, steps=880, direction=1)
+        rc, s = run(g.write(d, "retract.log"))
+        if rc != 0:
+            failures.append(f"30 um retract in 880 steps flagged: {s.get('violations')}")
+        g = clean()
+        g.cycle(1000.0, 1030.0, steps=880)                            # 35 um of advance steps
+        rc, s = run(g.write(d, "advance.log"))
+        if rc != 1 or s["violations_by_invariant"].get("step_cmd", 0) < 1:
+            failures.append(f"35 um advance not flagged: {s.get('violations_by_invariant')}")
+        # step_true: the true tip (truth.jsonl) jumps 40 um between two recordings
+        tp = os.path.join(d, "truth.jsonl")
+        with open(tp, "w") as f:
+            f.write('{"type":"neuron","electrode":0,"neuron":0,"depth_um":1200.0}\n')
+            for t, tip in ((0.0, 1000.0), (10.0, 1020.0), (20.0, 1060.0)):
+                f.write(json.dumps({"type": "state", "t_s": t, "electrode": 0, "tip_um": tip}) + "\n")
+        rc, s = run(clean().write(d, "clean2.log"), "--truth", tp)
+        by = s.get("violations_by_invariant", {})
+        if rc != 1 or by.get("step_true") != 1 or any(v for k, v in by.items() if k != "step_true"):
+            failures.append(f"step_true: rc {rc}, {by}")
+        else:
+            print("ok: step_true detected (1)")
         if subprocess.run([sys.executable, CHECK, os.path.join(d, "missing.log")], capture_output=True).returncode != 2:
             failures.append("unreadable log must exit 2")
     for f in failures:

@@ -11,8 +11,10 @@ decoded with cantools and the project DBC. Invariants (docs/safety.md):
 
   window        TLM_STATUS depth and target, and the Hall-derived depth (HALL_CALIB
                 + HALL_READING), stay inside [depth_min, depth_max] (+ tol)
-  step_cmd      per move (ACT_CMDs after a TLM_STATUS), |net signed steps| x step_len
-                <= step_max + tol
+  step_cmd      per move (ACT_CMDs after a TLM_STATUS), |net commanded travel| <= step_max
+                + tol, the travel of a step being step_len deeper (advance) and
+                step_len x retract_ratio shallower (retract: stick-slip drives retract by
+                less per step, host_sim/model/actuator.h)
   step_meas     consecutive TLM_STATUS depths of an electrode differ by <= step_max + tol
   rec_motion    no ACT_CMD step for an electrode between its REC_REQ and REC_END
   unasked       an ACT_CMD step only after a TLM_STATUS whose target != depth
@@ -25,7 +27,9 @@ decoded with cantools and the project DBC. Invariants (docs/safety.md):
                 --auto-start, an operational heartbeat following a pre-operational one)
 
 With --truth, the true tip depth of every electrode in truth.jsonl is also
-checked against the window. Exit status: 0 all hold, 1 a violation, 2 the
+checked against the window (`window`), and the true tip may move by at most
+step_max + tol between consecutive recordings of an electrode (`step_true`:
+what the electrode really did, whatever the sensor said). Exit status: 0 all hold, 1 a violation, 2 the
 log cannot be read. A JSON summary goes to stdout (and --json OUT).
 """
 import argparse
@@ -46,7 +50,7 @@ NMT_START, NMT_CLEAR_ESTOP = 1, 131
 EMCY_HB_LOST = 0x8130
 STATE_BOOT, STATE_OPERATIONAL, STATE_PREOP = 0, 5, 127
 CALIB_MID, CALIB_HALF = 0xF0, 0xF1
-INVARIANTS = ("window", "step_cmd", "step_meas", "rec_motion", "unasked", "hb_lost", "estop", "restart")
+INVARIANTS = ("window", "step_cmd", "step_meas", "step_true", "rec_motion", "unasked", "hb_lost", "estop", "restart")
 
 
 def parse_line(line):
@@ -71,7 +75,7 @@ class Checker:
         self.counts = defaultdict(int)
         self.recording = defaultdict(bool)          # e -> between REC_REQ and REC_END
         self.asked = defaultdict(bool)              # e -> last TLM_STATUS asked for motion
-        self.net_steps = defaultdict(int)           # e -> signed steps of the current move
+        self.net_um = defaultdict(float)            # e -> signed commanded travel of the current move
         self.last_depth = {}                        # e -> last TLM_STATUS depth
         self.calib = defaultdict(dict)              # e -> {index: value}
         self.hb_last = {}                           # node -> t of last heartbeat
@@ -138,12 +142,13 @@ class Checker:
             self.violate("estop", t, f"ACT_CMD step on electrode {e} after an ESTOP")
         if self.booted_at is not None:
             self.violate("restart", t, f"ACT_CMD step on electrode {e} before start after the boot at {self.booted_at:.3f}")
-        sign = -1 if int(m["Direction"]) == 1 else 1
-        self.net_steps[e] += sign * int(m["StepCount"])
-        if abs(self.net_steps[e]) * self.a.step_len_um > self.a.step_max_um + self.a.tol_um:
-            self.violate("step_cmd", t, f"electrode {e}: {abs(self.net_steps[e])} net steps in one move "
-                         f"(> {self.a.step_max_um} um at {self.a.step_len_um} um/step)")
-            self.net_steps[e] = 0
+        retract = int(m["Direction"]) == 1
+        step_um = self.a.step_len_um * (self.a.retract_ratio if retract else 1.0)
+        self.net_um[e] += (-1.0 if retract else 1.0) * int(m["StepCount"]) * step_um
+        if abs(self.net_um[e]) > self.a.step_max_um + self.a.tol_um:
+            self.violate("step_cmd", t, f"electrode {e}: {abs(self.net_um[e]):.2f} um commanded in one move "
+                         f"(> {self.a.step_max_um} um; {self.a.step_len_um} um/step, retract x{self.a.retract_ratio})")
+            self.net_um[e] = 0.0
 
     def status(self, t, m):
         e = int(m["Electrode"])
@@ -156,7 +161,7 @@ class Checker:
             self.violate("step_meas", t, f"electrode {e}: depth moved {d - self.last_depth[e]:.2f} um in one cycle")
         self.last_depth[e] = d
         self.asked[e] = abs(tg - d) > 1e-3
-        self.net_steps[e] = 0
+        self.net_um[e] = 0.0
 
     def hall(self, t, fid, m):
         e = int(m["Electrode"])
@@ -216,8 +221,10 @@ class Checker:
 
 
 def check_truth(path, a, violations):
-    """True tip depths of truth.jsonl against the window (records with a tip depth)."""
+    """True tip depths of truth.jsonl against the window (records with a tip depth), and
+    the true motion between consecutive tip records of an electrode against step_max."""
     n = 0
+    last = {}
     with open(path) as f:
         for line in f:
             try:
@@ -228,9 +235,18 @@ def check_truth(path, a, violations):
                 if key in r and "electrode" in r:
                     n += 1
                     d = float(r[key])
+                    t = r.get("t", r.get("t_s", 0.0))
                     if not (a.depth_min_um - a.tol_um <= d <= a.depth_max_um + a.tol_um):
-                        violations.append({"invariant": "window", "t": r.get("t", r.get("t_s", 0.0)),
+                        violations.append({"invariant": "window", "t": t,
                                            "what": f"electrode {r['electrode']}: true tip {d:.2f} um outside"})
+                    e = r["electrode"]
+                    if key == "depth_um":
+                        break   # a neuron's depth, not the tip
+                    if e in last and abs(d - last[e]) > a.step_max_um + a.tol_um:
+                        violations.append({"invariant": "step_true", "t": t,
+                                           "what": f"electrode {e}: true tip moved {d - last[e]:.2f} um between "
+                                                   f"recordings (> {a.step_max_um} um)"})
+                    last[e] = d
                     break
     return n
 
@@ -243,7 +259,9 @@ def main(argv=None):
     p.add_argument("--depth-min-um", type=float, default=0.0)
     p.add_argument("--depth-max-um", type=float, default=5000.0)
     p.add_argument("--step-max-um", type=float, default=30.0, help="Delta_max (controller step_max_um)")
-    p.add_argument("--step-len-um", type=float, default=0.040, help="step length the command bound assumes")
+    p.add_argument("--step-len-um", type=float, default=0.040, help="advance step length the command bound assumes")
+    p.add_argument("--retract-ratio", type=float, default=0.85,
+                   help="retract step / advance step (host_sim/model/actuator.h default)")
     p.add_argument("--tol-um", type=float, default=3.0, help="servo tolerance + Hall noise allowance")
     p.add_argument("--hb-timeout-ms", type=float, default=500.0)
     p.add_argument("--emcy-grace-ms", type=float, default=100.0, help="allowed lateness of the EMCY")
