@@ -249,6 +249,79 @@ static void test_ids_monotonic_and_pool_shared(void)
     TEST_MESSAGE("pool sharing verified");
 }
 
+/* Two parents naming the same track records have bit-identical priors: their
+ * model hypotheses are fitted once and copied (stats.models_shared), and the
+ * copies equal a fresh fit of that parent alone on the same interval. */
+static mhtc_state_t g_st_one;
+static mhtc_model_t g_fresh[MHTC_MODELS_MAX];
+
+static void make_twin_parents(void)
+{
+    g_st.hyp[1] = g_st.hyp[0];
+    g_st.hyp[1].log_prob = g_st.hyp[0].log_prob - 1.0;
+    g_st.n_hyp = 2u;
+    for (size_t r = 0u; r < MHTC_POOL; ++r) {
+        g_st.pool[r].refs = 0u;
+    }
+    for (size_t h = 0u; h < g_st.n_hyp; ++h) {
+        for (size_t j = 0u; j < g_st.hyp[h].n_tracks; ++j) {
+            g_st.pool[g_st.hyp[h].track[j]].refs++;
+        }
+    }
+}
+
+/* Field by field, exactly (struct padding is not compared). */
+static void same_model(const mhtc_model_t *a, const mhtc_model_t *b)
+{
+    TEST_ASSERT_EQUAL_UINT32(a->fit.iterations, b->fit.iterations);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, a->fit.log_post, b->fit.log_post);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, a->log_ev, b->log_ev);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, a->log_norm, b->log_norm);
+    TEST_ASSERT_EQUAL_MEMORY(a->fit.params.mean, b->fit.params.mean, sizeof a->fit.params.mean);
+    TEST_ASSERT_EQUAL_MEMORY(a->fit.zeta, b->fit.zeta, sizeof a->fit.zeta);
+    TEST_ASSERT_EQUAL_MEMORY(a->labels, b->labels, sizeof a->labels);
+    TEST_ASSERT_EQUAL_size_t(a->n_sol, b->n_sol);
+}
+
+static void test_identical_priors_fitted_once(void)
+{
+    start(MHTC_TRACKER_MHTC, 6u);
+    for (int k = 0; k < 3; ++k) {
+        interval_with(true, true, false);
+    }
+    TEST_ASSERT_TRUE(g_st.hyp[0].n_tracks > 0u);
+    make_twin_parents();
+    g_st_one = g_st;
+    g_st_one.n_hyp = 1u;
+    for (size_t j = 0u; j < g_st.hyp[1].n_tracks; ++j) {
+        g_st_one.pool[g_st.hyp[1].track[j]].refs--;
+    }
+    const md_rng_t rng = g_rng;
+    g_st_one.stats.models_shared = 0u;
+    const mhtc_state_t twin = g_st;
+    g_st = g_st_one; /* fresh fit of parent 0 alone */
+    interval_with(true, true, false);
+    const size_t n_fresh = g_ws.n_models;
+    TEST_ASSERT_TRUE(n_fresh > 0u);
+    TEST_ASSERT_EQUAL_UINT32(0u, g_st.stats.models_shared);
+    memcpy(g_fresh, g_ws.model, n_fresh * sizeof g_fresh[0]);
+    g_st = twin; /* both parents, same interval */
+    g_rng = rng;
+    const uint32_t shared0 = g_st.stats.models_shared;
+    interval_with(true, true, false);
+    TEST_ASSERT_EQUAL_size_t(2u * n_fresh, g_ws.n_models);
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)n_fresh, g_st.stats.models_shared - shared0);
+    for (size_t m = 0u; m < n_fresh; ++m) {
+        const mhtc_model_t *a = &g_ws.model[m];
+        const mhtc_model_t *b = &g_ws.model[n_fresh + m];
+        TEST_ASSERT_EQUAL_UINT8(0u, a->parent);
+        TEST_ASSERT_EQUAL_UINT8(1u, b->parent);
+        TEST_ASSERT_EQUAL_UINT8(g_fresh[m].g, b->g);
+        same_model(&g_fresh[m], b);
+        same_model(a, b);
+    }
+}
+
 static void test_empty_interval_and_bad_input(void)
 {
     start(MHTC_TRACKER_MHTC, 5u);
@@ -378,6 +451,7 @@ int main(void)
     RUN_TEST(test_new_neuron_new_id_and_delayed_decision);
     RUN_TEST(test_false_cluster_not_a_track);
     RUN_TEST(test_ids_monotonic_and_pool_shared);
+    RUN_TEST(test_identical_priors_fitted_once);
     RUN_TEST(test_empty_interval_and_bad_input);
     RUN_TEST(test_baselines_run_and_nn_loses_silent_neuron);
     RUN_TEST(test_int16_input_equals_double_input);

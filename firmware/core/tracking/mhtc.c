@@ -337,6 +337,62 @@ static void mhtc_collect(mhtc_state_t *st, mhtc_workspace_t *ws)
     }
 }
 
+/* The first parent q < p whose track list names the same pool records in the same order, else p.
+ * Such parents have bit-identical targets (mhtc_fill_targets reads only the records), hence the
+ * same prior (eq. 3.8-3.10), seeds (eq. 3.16), P3 (eq. 4.11), fits and associations. */
+static size_t mhtc_same_prior(const mhtc_state_t *st, size_t p)
+{
+    const mhtc_hyp_t *h = mhtc_parent(st, p);
+    for (size_t q = 0u; q < p; ++q) {
+        const mhtc_hyp_t *o = mhtc_parent(st, q);
+        if ((o->n_tracks == h->n_tracks) &&
+            (memcmp(o->track, h->track, h->n_tracks * sizeof h->track[0]) == 0)) {
+            return q;
+        }
+    }
+    return p;
+}
+
+/* Parent p gets copies of the model hypotheses slots [first, first + count) fitted for an
+ * identical prior: exact sharing, the EM is deterministic in its inputs. */
+static void mhtc_share_models(mhtc_state_t *st, mhtc_workspace_t *ws, size_t first, size_t count, size_t p)
+{
+    for (size_t m = first; (m < first + count) && (ws->n_models < MHTC_MODELS_MAX); ++m) {
+        ws->model[ws->n_models] = ws->model[m];
+        ws->model[ws->n_models].parent = (uint8_t)p;
+        ws->n_models++;
+        st->stats.models_shared++;
+    }
+}
+
+/* Steps 2-7 for every parent, fitting once per distinct set of predicted targets. */
+static void mhtc_expand_all(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws,
+                            size_t parents)
+{
+    uint8_t first[MHTC_L_MAX] = {0u}; /* model slots and counts: ≤ MHTC_MODELS_MAX ≤ 255 */
+    uint8_t count[MHTC_L_MAX] = {0u};
+    uint8_t pruned[MHTC_L_MAX] = {0u}; /* per parent ≤ MHTC_G_MAX */
+    uint8_t failed[MHTC_L_MAX] = {0u};
+    for (size_t p = 0u; (p < parents) && (p < MHTC_L_MAX); ++p) {
+        const size_t q = mhtc_same_prior(st, p);
+        if (q < p) {
+            mhtc_share_models(st, ws, first[q], count[q], p);
+            st->stats.models_pruned += pruned[q];
+            st->stats.models_failed += failed[q];
+            first[p] = first[q];
+            count[p] = 0u;
+            continue;
+        }
+        const uint32_t pruned0 = st->stats.models_pruned;
+        const uint32_t failed0 = st->stats.models_failed;
+        first[p] = (uint8_t)ws->n_models;
+        mhtc_expand_parent(st, data, volume, ws, p);
+        count[p] = (uint8_t)(ws->n_models - first[p]);
+        pruned[p] = (uint8_t)(st->stats.models_pruned - pruned0);
+        failed[p] = (uint8_t)(st->stats.models_failed - failed0);
+    }
+}
+
 static md_status_t mhtc_run_mhtc(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws)
 {
     const em_data_t data = {in->y, in->n, in->basis->d};
@@ -346,8 +402,8 @@ static md_status_t mhtc_run_mhtc(mhtc_state_t *st, const mhtc_input_t *in, mhtc_
     const bool data_ok = (in->n > 0u) && (em_bounding_volume(&data, &volume) == MD_OK) &&
                          (em_outlier_init(data.d, in->noise_cov, volume, &ws->cl.outlier) == MD_OK) &&
                          (em_outlier_tabulate(&ws->cl.outlier, &data) == MD_OK);
-    for (size_t p = 0u; data_ok && (p < parents); ++p) {
-        mhtc_expand_parent(st, &data, volume, ws, p);
+    if (data_ok) {
+        mhtc_expand_all(st, &data, volume, ws, parents);
     }
     if (ws->n_models == 0u) {
         st->stats.empty_intervals++; /* nothing clusterable: every parent continues with all tracks missed */

@@ -141,6 +141,7 @@ typedef struct {
     uint32_t kf_failures;      ///< Kalman updates rejected (track kept with its prediction)
     uint32_t tracks_deleted;   ///< records retired after K_miss misses
     uint32_t murty_solves;     ///< LAP solves inside Murty (benchmark figure)
+    uint32_t models_shared;    ///< model hypotheses copied from a parent with the same track records (no EM)
 } mhtc_stats_t;
 
 /// Tracker state of one electrode (persistent between intervals).
