@@ -374,13 +374,12 @@ static void test_reestimate_to_reisolate_and_back(void)
     TEST_ASSERT_DOUBLE_WITHIN(0.0, -5.0, out.step_um);
     in = base();
     in.snr = 6.0;
-    run(&in, cfg.wait_r - 1u);
-    in.suggestion.m_star = 1u;
-    run(&in, 1u);
-    TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
-    in.suggestion.m_star = 2u;
-    in.suggestion.step_um = -30.0;
+    in.suggestion.m_star = 1u; /* a flat curve says nothing about the direction */
     run(&in, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
+    in.suggestion.m_star = 2u; /* a slope: follow it at once (no WAIT, ours) */
+    in.suggestion.step_um = -30.0;
+    run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_REISOLATE_NEURON, out.state);
     TEST_ASSERT_DOUBLE_WITHIN(0.0, -30.0, out.step_um);
     in.snr = 7.99;
@@ -438,6 +437,7 @@ static void test_other_dominant_is_adopted(void)
         sfsm_input_t other = base();
         other.dominant_track = TRACK_B;
         other.snr = (here == SFSM_NEURON_ISOLATED) ? 7.5 : 6.0; /* no drop below 0.85 × 8, no restore */
+        other.suggestion.m_star = 1u;                            /* no slope: Re-Estimate stays */
         sfsm_input_t mine = other;
         mine.dominant_track = TRACK_A;
         run(&other, cfg.wait_r - 1u);
@@ -493,6 +493,7 @@ static void test_omega3_isolates_from_any_state(void)
         sfsm_input_t in = base();
         in.iqm = 5.0;
         in.snr = 6.0;
+        in.suggestion.m_star = 1u; /* no slope: Re-Estimate stays */
         run(&in, 1u);
         TEST_ASSERT_EQUAL_INT(here, out.state);
         TEST_ASSERT_DOUBLE_WITHIN(0.0, 8.0, sm.ref_snr);
