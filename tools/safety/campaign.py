@@ -31,6 +31,7 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 CHECK = os.path.join(HERE, "check_invariants.py")
+FINDINGS = os.path.join(HERE, "campaign_findings.md")   # hand-written analysis, appended to the doc
 INVARIANTS = ["window", "step_cmd", "step_meas", "step_true", "rec_motion", "unasked", "hb_lost", "estop", "restart"]
 
 # fault counters printed by microdrive-session at the end of an in-process run
@@ -149,6 +150,9 @@ def write_doc(a, rows, path):
             for v in r["summary"]["violations"][:3]:
                 lines.append(f"- {kind} seed {r['seed']}: `{v['invariant']}` at {v['t']} s: {v['what']}")
         lines.append("")
+    if os.path.exists(FINDINGS):
+        with open(FINDINGS) as f:
+            lines += [f.read()]
     with open(path, "w") as f:
         f.write("\n".join(lines))
 
@@ -168,10 +172,16 @@ def main(argv=None):
     p.add_argument("--no-doc", action="store_true", help="do not write the doc (CI)")
     p.add_argument("--jobs", type=int, default=1, help="runs in parallel")
     p.add_argument("--keep-logs", action="store_true")
+    p.add_argument("--doc-from", help="only rewrite the doc from a campaign.json of an earlier run "
+                   "(with the same --seeds/--cycles/--first-seed)")
     p.add_argument("--check-args", default="", help="extra check_invariants.py arguments (the in-process launcher "
                    "starts the controller with a logged NMT start, so --auto-start is not needed)")
     a = p.parse_args(argv)
     a.check_args = a.check_args.split()
+    if a.doc_from:
+        with open(a.doc_from) as f:
+            write_doc(a, json.load(f), a.doc)
+        return 0
     scens = sorted(glob.glob(os.path.join(ROOT, "scenarios", "faults", "*.yaml")))
     if a.kinds:
         want = set(a.kinds.split(","))

@@ -1,0 +1,85 @@
+#!/usr/bin/env python3
+"""CI fault campaign (issue 8): one seed x every fault kind in scenarios/faults/ through the
+in-process session, each frame log and truth checked by tools/safety/check_invariants.py.
+
+usage: test_fault_campaign.py --session BIN/microdrive-session --work DIR [--seeds N] [--cycles N]
+
+Fails if any run violates an invariant, leaves no log, or shows no trace of its fault (a bus,
+silence or restart fault whose counters stayed at zero: the hook is not wired), EXCEPT the
+violations listed in KNOWN_OPEN below: findings of the campaign in units this test does not own
+(docs/fault-campaign.md, "Open findings"; tools/safety/campaign_findings.md), tolerated by (kind, invariant) exactly like the fuzz
+harness switches, so that every other invariant keeps guarding. A known-open entry whose run no
+longer violates it makes the test fail too ("fixed: remove it"), so the list cannot go stale.
+~1-2 s per run on the shared 2-core VM: 15 runs well under a minute.
+"""
+import argparse
+import os
+import subprocess
+import sys
+import json
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
+CAMPAIGN = os.path.join(ROOT, "tools", "safety", "campaign.py")
+
+# (kind, invariant): open findings in firmware/app/md_servo.c (docs/fault-campaign.md).
+KNOWN_OPEN = {
+    ("hall_stuck", "step_cmd"),     # F1: 2 x 501 steps with a stuck sensor = 40 um > Delta_max
+    ("hall_stuck", "step_meas"),    # F1: the moves the stuck sensor did not see show up at once
+    ("hall_stuck", "step_true"),    # F1: the true tip moves 40 um per cycle
+    ("actuator_slip", "step_true"), # F2: the true tip runs back ~190 um per cycle
+    ("actuator_slip", "step_cmd"),  # F2: the servo compensates slips beyond Delta_max
+    ("actuator_slip", "step_meas"), # F2: the electrode runs backwards, the cycle goes on
+    ("hall_glitch", "step_meas"),   # F3: mean of 5 readings is not robust to 10 % glitches
+}
+# faults whose hook prints a counter: at least one must be non-zero
+COUNTED = {"bus_loss": "loss", "bus_corrupt": "corrupt", "bus_dup": "dup", "bus_delay": "delay",
+           "bus_reorder": "reorder", "node_silent_act": "silenced heartbeats",
+           "node_silent_hall": "silenced heartbeats", "node_silent_fe": "silenced heartbeats",
+           "controller_restart": "restarts"}
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--session", required=True)
+    p.add_argument("--work", required=True)
+    p.add_argument("--seeds", type=int, default=1)
+    p.add_argument("--cycles", type=int, default=12)
+    a = p.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    cmd = [sys.executable, CAMPAIGN, "--seeds", str(a.seeds), "--cycles", str(a.cycles), "--session", a.session,
+           "--out", a.work, "--no-doc", "--timeout-s", "120"]
+    print(" ".join(cmd), flush=True)
+    subprocess.run(cmd, check=False)   # its exit status is re-derived below, with KNOWN_OPEN
+    with open(os.path.join(a.work, "campaign.json")) as f:
+        rows = json.load(f)
+    fails, seen_open = [], set()
+    for kind, runs in rows.items():
+        for r in runs:
+            s = r["summary"]
+            if s is None:
+                fails.append(f"{kind} seed {r['seed']}: no log or checker failure ({r['end']})")
+                continue
+            for inv, n in s["violations_by_invariant"].items():
+                if n == 0:
+                    continue
+                if (kind, inv) in KNOWN_OPEN:
+                    seen_open.add((kind, inv))
+                    print(f"KNOWN OPEN {kind} seed {r['seed']}: {inv} x{n}")
+                else:
+                    first = next(v for v in s["violations"] if v["invariant"] == inv)
+                    fails.append(f"{kind} seed {r['seed']}: {inv} x{n}, first at {first['t']} s: {first['what']}")
+            if kind in COUNTED and r["injected"].get(COUNTED[kind], 0) == 0:
+                fails.append(f"{kind} seed {r['seed']}: no {COUNTED[kind]} counted: the fault was not injected")
+    for ko in sorted(KNOWN_OPEN - seen_open):
+        if ko[0] in rows:
+            fails.append(f"{ko[0]}: known-open {ko[1]} no longer violated: fixed? remove it from KNOWN_OPEN")
+    for f in fails:
+        print("FAIL", f)
+    print(f"{sum(len(r) for r in rows.values())} runs, {len(fails)} failures, "
+          f"{len(seen_open)} known-open findings seen")
+    return 1 if fails else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
