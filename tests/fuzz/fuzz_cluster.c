@@ -18,6 +18,14 @@
 #include "fuzz_input.h"
 
 #define FZ_N_CAP (EM_N_MAX + 4u) /* a few more than the capacity: must be refused */
+/* Executions must stay cheap enough for 10 million of them on a shared core
+ * (docs/fuzzing.md, "fuzz_cluster harness"): by default at most FZ_N_SMALL
+ * points and an EM bound of at most FZ_ITER_SMALL. Config bit 6 lifts the
+ * point cap to FZ_N_CAP (full capacity and overflow), bit 5 the EM bound to
+ * MD_EM_MAX_ITER, bit 3 allows any bound at all. Empty, one-spike, duplicate,
+ * collinear and extreme-value sets all fit under the small cap. */
+#define FZ_N_SMALL 40u
+#define FZ_ITER_SMALL 8u
 
 /* Open finding (docs/fuzzing.md, crashes/fuzz_cluster/): a target mean near
  * -DBL_MAX makes em_prior_log_mean NaN; the fit fails with MD_E_NUMERIC but
@@ -50,7 +58,7 @@ static void make_cov(fz_t *in, size_t d, double *m)
     }
 }
 
-static void make_config(fz_t *in, cluster_config_t *cfg)
+static uint8_t make_config(fz_t *in, cluster_config_t *cfg)
 {
     const uint8_t a = fz_u8(in);
     cluster_config_default(cfg, ((a & 1u) != 0u) ? CLUSTER_ML : CLUSTER_MAP);
@@ -63,7 +71,7 @@ static void make_config(fz_t *in, cluster_config_t *cfg)
     }
     /* Short EM runs keep executions fast (the iteration bound path is the same
      * at 3 as at 200); bit 5 allows the full bound, bit 3 anything at all. */
-    cfg->em.max_iter = 1u + (uint32_t)(fz_u8(in) % (((a & 32u) != 0u) ? MD_EM_MAX_ITER : 24u));
+    cfg->em.max_iter = 1u + (uint32_t)(fz_u8(in) % (((a & 32u) != 0u) ? MD_EM_MAX_ITER : FZ_ITER_SMALL));
     if ((a & 8u) != 0u) {
         cfg->em.max_iter = fz_u32(in);
         cfg->em.tol = fz_double(in);
@@ -73,6 +81,7 @@ static void make_config(fz_t *in, cluster_config_t *cfg)
         cfg->lambda_false = fz_double(in);
         cfg->shape_prior_width = fz_double(in);
     }
+    return a;
 }
 
 static size_t make_targets(fz_t *in, size_t d)
@@ -176,7 +185,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     fz_t in;
     fz_init(&in, data, size);
     cluster_config_t cfg;
-    make_config(&in, &cfg);
+    const size_t n_cap = ((make_config(&in, &cfg) & 64u) != 0u) ? FZ_N_CAP : FZ_N_SMALL;
     const uint8_t db = fz_u8(&in);
     const size_t d = (db < 250u) ? 1u + db % EM_D_MAX : db % (EM_D_MAX + 2u); /* rarely 0 or D_MAX+1 */
     const size_t dd = (d >= 1u && d <= EM_D_MAX) ? d : 1u;
@@ -195,7 +204,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         cin.model_prior = model_prior;
     }
     size_t n = 0u;
-    while (fz_left(&in) > 0u && n < FZ_N_CAP) {
+    while (fz_left(&in) > 0u && n < n_cap) {
         make_point(&in, n, dd);
         n++;
     }
