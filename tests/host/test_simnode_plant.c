@@ -552,9 +552,63 @@ static void test_hall_seq_wraps_and_time_is_simulated(void)
     TEST_ASSERT_EQUAL_UINT64(3000000u, plant.now_us);
 }
 
+/* Fault injection (scenario node_silent): the Hall node sends nothing in
+ * [1 s, 2 s) of simulated time, counted in tx_silenced, and is back after;
+ * the other nodes are not affected. A launcher's later clock also counts. */
+static void test_silent_node_sends_nothing_in_its_window(void)
+{
+    static const char y[] = "electrodes:\n  - start_um: 1000\n"
+                            "faults:\n  - {kind: node_silent, node: hall, from_s: 1, to_s: 2}\n";
+    static scenario_t sc;
+    char err[256];
+    TEST_ASSERT_EQUAL_INT(0, scenario_parse(&sc, y, sizeof y - 1u, "silent.yaml", err, sizeof err));
+    simnode_world_destroy(world);
+    world = simnode_world_create_scenario(&sc, 3u, err, sizeof err);
+    TEST_ASSERT_MESSAGE(world != NULL, err);
+    simnode_plant_cfg_t cfg;
+    simnode_plant_cfg_default(&cfg);
+    const simnode_sink_t sink = {capture, NULL};
+    TEST_ASSERT_EQUAL_INT(MD_OK, simnode_plant_init(&plant, &cfg, world, sink));
+    simnode_plant_start(&plant);
+    n_cap = 0u;
+    send_rec(0u, 1u, 90000u);   /* 3 s of simulated time */
+    uint32_t before = 0u, inside = 0u, after = 0u;
+    for (size_t i = 0; i < n_cap; i++) {
+        if (cap[i].id != MD_CAN_HALL_READING_FRAME_ID) {
+            continue;
+        }
+        struct md_can_hall_reading_t r;
+        TEST_ASSERT_EQUAL_INT(0, md_can_hall_reading_unpack(&r, cap[i].data, cap[i].len));
+        before += (r.sample_time_ms < 1000u) ? 1u : 0u;
+        inside += (r.sample_time_ms >= 1000u && r.sample_time_ms < 2000u) ? 1u : 0u;
+        after += (r.sample_time_ms >= 2000u) ? 1u : 0u;
+    }
+    TEST_ASSERT_EQUAL_UINT32(0u, inside);
+    TEST_ASSERT_GREATER_THAN_UINT(90u, before);
+    TEST_ASSERT_GREATER_THAN_UINT(90u, after);
+    TEST_ASSERT_EQUAL_UINT64(100u, plant.hall.node.stats.tx_silenced);
+    TEST_ASSERT_EQUAL_UINT64(0u, plant.fe.node.stats.tx_silenced);
+    TEST_ASSERT_EQUAL_UINT64(0u, plant.act.node.stats.tx_silenced);
+    TEST_ASSERT_FALSE(plant.hall.node.silent);
+    /* a launcher clock ahead of the idle lockstep plant silences at once; an
+     * earlier time never undoes it (the latest time seen counts) */
+    simnode_world_destroy(world);
+    world = simnode_world_create_scenario(&sc, 3u, err, sizeof err);
+    TEST_ASSERT_MESSAGE(world != NULL, err);
+    TEST_ASSERT_EQUAL_INT(MD_OK, simnode_plant_init(&plant, &cfg, world, sink));
+    simnode_plant_silence_at(&plant, 1500000u);
+    TEST_ASSERT_TRUE(plant.hall.node.silent);
+    TEST_ASSERT_FALSE(plant.act.node.silent);
+    simnode_plant_silence_at(&plant, 500000u);
+    TEST_ASSERT_TRUE(plant.hall.node.silent);
+    simnode_plant_silence_at(&plant, 2000000u);
+    TEST_ASSERT_FALSE(plant.hall.node.silent);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
+    RUN_TEST(test_silent_node_sends_nothing_in_its_window);
     RUN_TEST(test_start_announces_every_node_in_one_batch);
     RUN_TEST(test_act_cmd_moves_and_reports_with_seq);
     RUN_TEST(test_halt_is_acknowledged_without_time);
