@@ -322,6 +322,36 @@ static void test_identical_priors_fitted_once(void)
     }
 }
 
+/* Thesis §4.6: parents with similar priors reuse one EM fit, re-evaluated
+ * under each parent's own prior. On a scripted two-neuron run it must be used,
+ * and give the same leading tracks and labels as fitting every parent. */
+static uint8_t g_labels_ref[N_MAX];
+
+static void run_two_neurons(double share, uint64_t seed)
+{
+    start(MHTC_TRACKER_MHTC, seed);
+    g_st.cfg.share_jeffreys = share;
+    for (int k = 0; k < 5; ++k) {
+        interval_with(true, k != 2, false);
+    }
+}
+
+static void test_similar_priors_reuse_fits(void)
+{
+    run_two_neurons(0.0, 7u);
+    TEST_ASSERT_EQUAL_UINT32(0u, g_st.stats.models_reused);
+    const mhtc_result_t ref = g_out;
+    memcpy(g_labels_ref, g_out.labels, sizeof g_labels_ref);
+    run_two_neurons(MHTC_SHARE_JEFFREYS_DEFAULT, 7u);
+    TEST_ASSERT_GREATER_THAN_UINT(0u, g_st.stats.models_reused);
+    TEST_ASSERT_EQUAL_size_t(ref.n_tracks, g_out.n_tracks);
+    for (size_t j = 0u; j < ref.n_tracks; ++j) {
+        TEST_ASSERT_EQUAL_UINT32(ref.track[j].id, g_out.track[j].id);
+    }
+    TEST_ASSERT_EQUAL_size_t(ref.g, g_out.g);
+    TEST_ASSERT_EQUAL_MEMORY(g_labels_ref, g_out.labels, sizeof g_labels_ref);
+}
+
 static void test_empty_interval_and_bad_input(void)
 {
     start(MHTC_TRACKER_MHTC, 5u);
@@ -452,6 +482,7 @@ int main(void)
     RUN_TEST(test_false_cluster_not_a_track);
     RUN_TEST(test_ids_monotonic_and_pool_shared);
     RUN_TEST(test_identical_priors_fitted_once);
+    RUN_TEST(test_similar_priors_reuse_fits);
     RUN_TEST(test_empty_interval_and_bad_input);
     RUN_TEST(test_baselines_run_and_nn_loses_silent_neuron);
     RUN_TEST(test_int16_input_equals_double_input);

@@ -136,8 +136,8 @@ int main(int argc, char **argv)
            "mhtc_hyp_t %zu B x %u, mhtc_workspace_t %zu B (shared)\n",
            sizeof(mhtc_state_t), sizeof(mhtc_track_t), (unsigned)MHTC_POOL, sizeof(kf_state_t), sizeof(mhtc_hyp_t),
            (unsigned)MHTC_L_MAX, sizeof(mhtc_workspace_t));
-    printf("stats: pruned %u failed %u fallbacks %u dup %u pool_drops %u murty_solves %u\n",
+    printf("stats: pruned %u failed %u fallbacks %u dup %u pool_drops %u murty_solves %u shared %u\n",
            g_st.stats.models_pruned, g_st.stats.models_failed, g_st.stats.evidence_fallbacks, g_st.stats.dup_pruned,
-           g_st.stats.pool_drops, g_st.stats.murty_solves);
+           g_st.stats.pool_drops, g_st.stats.murty_solves, g_st.stats.models_shared);
     return 0;
 }

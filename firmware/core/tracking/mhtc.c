@@ -38,6 +38,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->shape_prior_width = EM_SHAPE_PRIOR_WIDTH;
     cfg->nn_gate_sigma = 2.0;
     cfg->gnn_gate_chi2 = 9.21;
+    cfg->share_jeffreys = MHTC_SHARE_JEFFREYS_DEFAULT;
 }
 
 md_status_t mhtc_config_check(const mhtc_config_t *c)
@@ -56,7 +57,7 @@ md_status_t mhtc_config_check(const mhtc_config_t *c)
                     (c->q_process > 0.0) && isfinite(c->q_process) && (c->init_var > 0.0) &&
                     isfinite(c->init_var) && (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) &&
                     (c->em.tol > 0.0) && (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) &&
-                    (c->gnn_gate_chi2 > 0.0) &&
+                    (c->gnn_gate_chi2 > 0.0) && (c->share_jeffreys >= 0.0) && isfinite(c->share_jeffreys) &&
                     ((c->evidence == CLUSTER_EVIDENCE_LAPLACE) || (c->evidence == CLUSTER_EVIDENCE_BIC));
     return ok ? MD_OK : MD_E_ARG;
 }
@@ -200,6 +201,8 @@ size_t mhtc_fill_targets(const mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
     return h->n_tracks;
 }
 
+static void mhtc_model_evidence(mhtc_state_t *st, const em_data_t *data, mhtc_workspace_t *ws, mhtc_model_t *m);
+
 /* Steps 4-6 for one model class: seeds from the targets, MAP-EM, labels, evidence P4. */
 static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws,
                            mhtc_model_t *m)
@@ -214,6 +217,13 @@ static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, m
         return;
     }
     em_labels(c->z, data->n, m->g, m->labels);
+    mhtc_model_evidence(st, data, ws, m);
+}
+
+/* Step 6: evidence P4 of a fitted model under the current prior (ws->cl.prior). */
+static void mhtc_model_evidence(mhtc_state_t *st, const em_data_t *data, mhtc_workspace_t *ws, mhtc_model_t *m)
+{
+    cluster_workspace_t *c = &ws->cl;
     if (st->cfg.evidence == CLUSTER_EVIDENCE_BIC) {
         m->log_ev = em_evidence_bic(m->fit.log_lik, data->d, m->g, data->n);
         m->usable = isfinite(m->log_ev);
@@ -278,9 +288,47 @@ size_t mhtc_empty_model(mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
     return ws->n_models++;
 }
 
-/* Steps 2-7 for parent p: P3 pruning (eq. 4.11), prior (eq. 4.12), fits, associations. */
+/* A fitted model of a parent with a similar prior, re-evaluated under parent p's prior
+ * (ws->cl.prior): ζ (eq. 3.14) and log-posterior (eq. 3.4) at the shared Θ̂, then P4. The
+ * parameters stay the donor's MAP estimate (thesis §4.6: one clustering for similar priors). */
+static bool mhtc_reuse_model(mhtc_state_t *st, const em_data_t *data, mhtc_workspace_t *ws,
+                             const mhtc_model_t *donor, mhtc_model_t *m)
+{
+    const uint8_t parent = m->parent;
+    const double lp3 = m->log_p3;
+    *m = *donor;
+    m->parent = parent;
+    m->log_p3 = lp3;
+    m->usable = false;
+    memset(m->fit.zeta, 0, sizeof m->fit.zeta);
+    double lp = m->fit.log_lik;
+    for (size_t g = 0u; g < m->g; ++g) {
+        lp += em_prior_log_mean(&ws->cl.prior, m->fit.params.mean[g], m->fit.zeta[g]);
+    }
+    if (!isfinite(lp)) {
+        return false;
+    }
+    m->fit.log_post = lp;
+    mhtc_model_evidence(st, data, ws, m);
+    st->stats.models_reused++;
+    return m->usable;
+}
+
+/* Donor model of class g among slots [first, first + count), or NULL. */
+static const mhtc_model_t *mhtc_donor(const mhtc_workspace_t *ws, size_t first, size_t count, size_t g)
+{
+    for (size_t m = first; (m < first + count) && (m < MHTC_MODELS_MAX); ++m) {
+        if (ws->model[m].g == g) {
+            return &ws->model[m];
+        }
+    }
+    return NULL;
+}
+
+/* Steps 2-7 for parent p: P3 pruning (eq. 4.11), prior (eq. 4.12), fits, associations.
+ * With a donor range (count > 0), a model class the donor fitted is re-evaluated, not refitted. */
 static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws,
-                               size_t p)
+                               size_t p, size_t donor_first, size_t donor_count)
 {
     const size_t nt = mhtc_fill_targets(st, ws, p);
     const double l0 = st->cfg.lambda_new + st->cfg.lambda_false;
@@ -303,7 +351,12 @@ static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double v
         m->g = (uint8_t)g;
         m->parent = (uint8_t)p;
         m->log_p3 = lp3;
-        mhtc_fit_model(st, data, nt, ws, m);
+        const mhtc_model_t *donor = mhtc_donor(ws, donor_first, donor_count, g);
+        if (donor != NULL) {
+            m->usable = mhtc_reuse_model(st, data, ws, donor, m);
+        } else {
+            mhtc_fit_model(st, data, nt, ws, m);
+        }
         m->usable = m->usable && mhtc_associate(st, ws, m, nt);
         if (!m->usable) {
             st->stats.models_failed++;
@@ -353,6 +406,57 @@ static size_t mhtc_same_prior(const mhtc_state_t *st, size_t p)
     return p;
 }
 
+/* Jeffreys divergence (symmetric KL) of N(μa, Sa) and N(μb, Sb), d ≤ EM_D_MAX:
+ * ½ tr(Sb⁻¹Sa + Sa⁻¹Sb) - d + ½ δᵀ(Sa⁻¹ + Sb⁻¹)δ. +inf if either S is not SPD. */
+static double mhtc_jeffreys(const double *ma, const double *sa, const double *mb, const double *sb, size_t d)
+{
+    double ia[EM_D_MAX * EM_D_MAX];
+    double ib[EM_D_MAX * EM_D_MAX];
+    double work[EM_D_MAX * EM_D_MAX];
+    if ((linalg_spd_inverse(sa, d, ia, work, NULL) != MD_OK) || (linalg_spd_inverse(sb, d, ib, work, NULL) != MD_OK)) {
+        return HUGE_VAL;
+    }
+    double j = -(double)d;
+    for (size_t r = 0u; r < d; ++r) {
+        for (size_t c = 0u; c < d; ++c) {
+            j += 0.5 * (ib[r * d + c] * sa[c * d + r] + ia[r * d + c] * sb[c * d + r]);
+            j += 0.5 * (ma[r] - mb[r]) * (ia[r * d + c] + ib[r * d + c]) * (ma[c] - mb[c]);
+        }
+    }
+    return j;
+}
+
+/* Parents q and p have the same number of targets and each of p's targets has its own target
+ * of q (in any order: target order only labels ζ's columns, which are recomputed) whose
+ * prediction is within cfg.share_jeffreys and whose P_d is within MHTC_SHARE_PD: the thesis'
+ * "similar priors" (§4.6). Greedy one-to-one matching; O(J^2 d^3). */
+static bool mhtc_prior_close(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t d, size_t q, size_t p)
+{
+    const mhtc_hyp_t *a = mhtc_parent(st, q);
+    const mhtc_hyp_t *b = mhtc_parent(st, p);
+    if ((a->n_tracks != b->n_tracks) || !(st->cfg.share_jeffreys > 0.0) || (a->n_tracks > MHTC_TARGETS_MAX)) {
+        return false;
+    }
+    bool used[MHTC_TARGETS_MAX] = {false};
+    for (size_t j = 0u; j < b->n_tracks; ++j) {
+        const size_t rb = b->track[j];
+        bool found = false;
+        for (size_t k = 0u; (k < a->n_tracks) && !found; ++k) {
+            const size_t ra = a->track[k];
+            found = !used[k] && (ra < MHTC_POOL) && (rb < MHTC_POOL) &&
+                    ((ra == rb) ||
+                     ((fabs(st->pool[ra].p_detect - st->pool[rb].p_detect) <= MHTC_SHARE_PD) &&
+                      (mhtc_jeffreys(ws->pred_mu[ra], ws->pred_s[ra], ws->pred_mu[rb], ws->pred_s[rb], d) <=
+                       st->cfg.share_jeffreys)));
+            used[k] = used[k] || found;
+        }
+        if (!found) {
+            return false;
+        }
+    }
+    return true;
+}
+
 /* Parent p gets copies of the model hypotheses slots [first, first + count) fitted for an
  * identical prior: exact sharing, the EM is deterministic in its inputs. */
 static void mhtc_share_models(mhtc_state_t *st, mhtc_workspace_t *ws, size_t first, size_t count, size_t p)
@@ -373,6 +477,7 @@ static void mhtc_expand_all(mhtc_state_t *st, const em_data_t *data, double volu
     uint8_t count[MHTC_L_MAX] = {0u};
     uint8_t pruned[MHTC_L_MAX] = {0u}; /* per parent ≤ MHTC_G_MAX */
     uint8_t failed[MHTC_L_MAX] = {0u};
+    bool fitted[MHTC_L_MAX] = {false}; /* parents whose models came from their own EM fits */
     for (size_t p = 0u; (p < parents) && (p < MHTC_L_MAX); ++p) {
         const size_t q = mhtc_same_prior(st, p);
         if (q < p) {
@@ -383,10 +488,15 @@ static void mhtc_expand_all(mhtc_state_t *st, const em_data_t *data, double volu
             count[p] = 0u;
             continue;
         }
+        size_t donor = p;
+        for (size_t r = 0u; (r < p) && (donor == p); ++r) {
+            donor = (fitted[r] && mhtc_prior_close(st, ws, data->d, r, p)) ? r : p;
+        }
+        fitted[p] = (donor == p);
         const uint32_t pruned0 = st->stats.models_pruned;
         const uint32_t failed0 = st->stats.models_failed;
         first[p] = (uint8_t)ws->n_models;
-        mhtc_expand_parent(st, data, volume, ws, p);
+        mhtc_expand_parent(st, data, volume, ws, p, first[donor], (donor < p) ? count[donor] : 0u);
         count[p] = (uint8_t)(ws->n_models - first[p]);
         pruned[p] = (uint8_t)(st->stats.models_pruned - pruned0);
         failed[p] = (uint8_t)(st->stats.models_failed - failed0);

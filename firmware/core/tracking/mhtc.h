@@ -57,6 +57,10 @@
 #define MHTC_G_MAX MD_G_MAX                  ///< clusters per model
 #define MHTC_HIST_MAX 8u                     ///< intervals of assignment/rank history (≥ K_miss)
 #define MHTC_MODELS_MAX (MHTC_L_MAX * MHTC_G_MAX) ///< model hypotheses of one interval
+#ifndef MHTC_SHARE_JEFFREYS_DEFAULT
+#define MHTC_SHARE_JEFFREYS_DEFAULT 0.01 ///< default of mhtc_config_t.share_jeffreys (docs/mhtc.md)
+#endif
+#define MHTC_SHARE_PD 0.05                  ///< largest |ΔP_d| of a shared target (enters ω_j, eq. 3.9)
 #define MHTC_ID_FALSE (-1)                   ///< "false cluster" in assignment lists and labels
 /// Q = q·I default for waveforms in µV: (10 µV)² per sample and interval, calibrated on
 /// held-out simulator seeds (docs/tracking-eval.md). Also the default new-track variance.
@@ -93,6 +97,11 @@ typedef struct {
     double shape_prior_width;    ///< see em_evidence.h
     double nn_gate_sigma;        ///< ML-NN gate in standard deviations (2)
     double gnn_gate_chi2;        ///< GNN gate on the squared Mahalanobis distance (9.21: χ²₂ 99 %)
+    double share_jeffreys;       ///< thesis §4.6: a parent whose targets are each within this symmetric KL
+                                 ///< divergence (nats) of an earlier parent's (and P_d within
+                                 ///< MHTC_SHARE_PD) reuses that parent's EM fits, re-evaluated under its
+                                 ///< own prior (ζ, log-posterior, evidence, associations); 0 = exact
+                                 ///< sharing only (MHTC_SHARE_JEFFREYS_DEFAULT)
 } mhtc_config_t;
 
 /// One track record (shared by every hypothesis that references it).
@@ -142,6 +151,7 @@ typedef struct {
     uint32_t tracks_deleted;   ///< records retired after K_miss misses
     uint32_t murty_solves;     ///< LAP solves inside Murty (benchmark figure)
     uint32_t models_shared;    ///< model hypotheses copied from a parent with the same track records (no EM)
+    uint32_t models_reused;    ///< model hypotheses reusing a similar parent's EM fit (share_jeffreys)
 } mhtc_stats_t;
 
 /// Tracker state of one electrode (persistent between intervals).
