@@ -12,7 +12,7 @@
 
 #define US_PER_MS 1000u
 #define US_PER_S 1000000u
-#define ANSWER_MARGIN_US (5u * US_PER_S)  /* platform-time slack on every wait for an answer */
+#define ANSWER_MARGIN_US ((uint64_t)5u * US_PER_S) /* platform-time slack on every wait for an answer */
 #define SERVO_ACTIONS_PER_POLL 4u         /* servo actions taken in one poll at most */
 #define STEP_EPS_UM 1e-6                  /* a smaller SFSM step is no step */
 #define REC_SAMPLES_MAX (30u * 65536u)    /* REC_REQ bound of the front-end (Seq range × 30) */
