@@ -147,18 +147,25 @@ md_status_t md_servo_depth_um(const md_servo_t *s, double *depth_um)
     if (!s->calibrated || s->code_count == 0u) {
         return MD_E_STATE;
     }
-    const size_t n = (s->code_count < s->cfg.avg_n) ? s->code_count : s->cfg.avg_n;
-    double sum = 0.0;
+    double d[MD_SERVO_AVG_MAX] = {0.0};
+    const size_t n = s->code_count;
     for (size_t i = 0u; i < n; ++i) {
         const size_t slot = (s->code_head + MD_SERVO_AVG_MAX - 1u - i) % MD_SERVO_AVG_MAX; /* newest first */
-        double d = 0.0;
-        const md_status_t st = md_servo_code_to_depth_um(s, s->code[slot], &d);
+        const md_status_t st = md_servo_code_to_depth_um(s, s->code[slot], &d[i]);
         if (st != MD_OK) {
             return st;
         }
-        sum += d;
     }
-    *depth_um = sum / (double)n;
+    for (size_t i = 1u; i < n; ++i) { /* insertion sort: n <= MD_SERVO_AVG_MAX */
+        const double v = d[i];
+        size_t j = i;
+        while (j > 0u && d[j - 1u] > v) {
+            d[j] = d[j - 1u];
+            --j;
+        }
+        d[j] = v;
+    }
+    *depth_um = ((n % 2u) != 0u) ? d[n / 2u] : 0.5 * (d[n / 2u - 1u] + d[n / 2u]);
     return MD_OK;
 }
 
@@ -176,6 +183,10 @@ md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, d
     if (s->phase != MD_SERVO_IDLE) {
         return MD_E_STATE;
     }
+    if (s->motion_latched) {
+        s->stats.latched_refusals++;
+        return MD_E_STATE;
+    }
     s->target_um = target_um;
     s->win_min_um = win_min_um;
     s->win_max_um = win_max_um;
@@ -184,6 +195,9 @@ md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, d
     s->iter = 0u;
     s->waits = 0u;
     s->no_motion = 0u;
+    s->cmd_travel_um[0] = 0.0;
+    s->cmd_travel_um[1] = 0.0;
+    s->rechecking = false;
     s->result = MD_SERVO_R_NONE;
     s->phase = MD_SERVO_MEASURE;
     s->stats.moves++;
@@ -204,6 +218,10 @@ static void finish(md_servo_t *s, md_servo_result_t r)
     case MD_SERVO_R_NO_SENSOR: s->stats.no_sensor++; break;
     case MD_SERVO_R_OUT_OF_REGION: s->stats.out_of_region++; break;
     case MD_SERVO_R_ABORTED: s->stats.aborted++; break;
+    case MD_SERVO_R_RUNAWAY:
+        s->stats.runaways++;
+        s->motion_latched = true;
+        break;
     case MD_SERVO_R_NONE:
     default: break;
     }
@@ -230,6 +248,16 @@ void md_servo_abort(md_servo_t *s)
     }
 }
 
+void md_servo_clear_fault(md_servo_t *s)
+{
+    if (s != NULL) {
+        s->motion_latched = false;
+        s->hall_suspect = false;
+    }
+}
+
+bool md_servo_latched(const md_servo_t *s) { return s != NULL && s->motion_latched; }
+
 bool md_servo_busy(const md_servo_t *s) { return s != NULL && s->phase != MD_SERVO_IDLE; }
 
 void md_servo_act_status(md_servo_t *s, uint8_t cmd_seq, uint8_t state, uint8_t end_stops, uint16_t steps_done)
@@ -251,6 +279,22 @@ void md_servo_act_status(md_servo_t *s, uint8_t cmd_seq, uint8_t state, uint8_t 
     md_servo_clear_readings(s); /* readings taken during the motion are history */
 }
 
+/* True if every kept reading has the same code (stored in *code). */
+static bool all_codes_equal(const md_servo_t *s, uint16_t *code)
+{
+    if (s->code_count == 0u) {
+        return false;
+    }
+    const uint16_t first = s->code[(s->code_head + MD_SERVO_AVG_MAX - 1u) % MD_SERVO_AVG_MAX];
+    for (size_t i = 1u; i < s->code_count; ++i) {
+        if (s->code[(s->code_head + MD_SERVO_AVG_MAX - 1u - i) % MD_SERVO_AVG_MAX] != first) {
+            return false;
+        }
+    }
+    *code = first;
+    return true;
+}
+
 /* Learns the step length of the direction just used from the Hall
  * displacement; judges "no motion" (a stall the driver did not report). */
 static bool learn_step(md_servo_t *s, double moved_um)
@@ -261,7 +305,11 @@ static bool learn_step(md_servo_t *s, double moved_um)
     const double along_um = sign * moved_um;
     if (expected_um >= MD_SERVO_STALL_MIN_UM && along_um < MD_SERVO_STALL_FRACTION * expected_um) {
         s->no_motion++;
-        return s->no_motion >= MD_SERVO_STALL_REPEATS;
+        if (s->no_motion < MD_SERVO_STALL_REPEATS) {
+            return false;
+        }
+        s->hall_suspect = all_codes_equal(s, &s->stuck_code); /* a frozen sensor, not a stuck drive */
+        return true;
     }
     s->no_motion = 0u;
     if (s->cmd_steps > 0u && along_um >= STEP_LEARN_MIN_UM) {
@@ -286,17 +334,98 @@ static void set_region(md_servo_t *s, double d0)
     }
 }
 
+/* Travel of one step in direction k as the per-move budget counts it: the
+ * learned length, but never less than MD_SERVO_STEP_FLOOR of the configured
+ * one (the learning cannot talk the budget into many more steps). */
+static double worst_step_um(const md_servo_t *s, size_t k)
+{
+    return fmax(s->step_um[k], MD_SERVO_STEP_FLOOR * s->cfg.step_nm / NM_PER_UM);
+}
+
 /* Steps toward the goal, planned so that even steps MD_SERVO_STEP_SAFETY
- * times longer than learned stay inside the region. 0 if none fits. */
-static uint16_t plan_steps(const md_servo_t *s, double depth, size_t k)
+ * times longer than learned stay inside the region, and so that the travel
+ * commanded in this move (worst-case steps, whatever the sensor reports)
+ * stays within the distance from d0 to the region's edge. 0 if none fits. */
+static uint16_t plan_steps(md_servo_t *s, double depth, size_t k)
 {
     const double err = fabs(s->goal_um - depth);
     const double edge = (k == 0u) ? (s->region_hi_um - depth) : (depth - s->region_lo_um);
+    const double reach = (k == 0u) ? (s->region_hi_um - s->start_um) : (s->start_um - s->region_lo_um);
     const double n_goal = floor(err / s->step_um[k] + 0.5);
     const double n_edge = floor(fmax(0.0, edge) / (s->step_um[k] * MD_SERVO_STEP_SAFETY));
+    const double n_budget = floor(fmax(0.0, reach - s->cmd_travel_um[k]) / worst_step_um(s, k));
     double n = fmin(n_goal, n_edge);
+    if (n_budget < n) {
+        n = n_budget;
+        s->stats.budget_limited++;
+    }
     n = fmin(n, (double)UINT16_MAX);
     return (n >= 1.0) ? (uint16_t)n : 0u;
+}
+
+/* After a command: is the measured displacement plausible? Against the
+ * command beyond noise, or beyond MD_SERVO_STEP_SAFETY x the commanded
+ * travel, it is not (a glitch, or a slipping / running-away actuator). */
+static bool displacement_plausible(const md_servo_t *s, double moved_um)
+{
+    const bool advance = s->cmd_dir == (uint8_t)MD_ACT_DIR_ADVANCE;
+    const size_t k = advance ? (size_t)0 : (size_t)1;
+    const double along_um = advance ? moved_um : -moved_um;
+    const double slack_um = s->cfg.tol_um + MD_SERVO_NOISE_UM;
+    const double most_um = (double)s->cmd_steps * worst_step_um(s, k) * MD_SERVO_STEP_SAFETY;
+    return along_um >= -slack_um && along_um <= most_um + slack_um;
+}
+
+static md_servo_action_t wait_action(md_servo_t *s)
+{
+    md_servo_action_t a = {MD_SERVO_A_WAIT, 0u, 0u, 0u, 0u};
+    s->waits++;
+    a.wait_us = s->cfg.wait_us;
+    return a;
+}
+
+static md_servo_action_t finished_action(md_servo_t *s, md_servo_result_t r)
+{
+    md_servo_action_t a = {MD_SERVO_A_FINISHED, 0u, 0u, 0u, 0u};
+    finish(s, r);
+    return a;
+}
+
+/* Checks a fresh measurement against what the sensor and the last command
+ * allow. MD_SERVO_R_NONE: go on; otherwise the move ends with that result,
+ * except that an implausible displacement is measured once more
+ * (*remeasure). */
+static md_servo_result_t check_measurement(md_servo_t *s, double depth, bool *remeasure)
+{
+    *remeasure = false;
+    if (!s->have_start) {
+        uint16_t code = 0u;
+        if (s->hall_suspect && all_codes_equal(s, &code) && code == s->stuck_code) {
+            s->stats.suspect_refusals++;
+            return MD_SERVO_R_NO_SENSOR; /* still frozen: moving blind is not allowed */
+        }
+        s->hall_suspect = false;
+        if (s->have_depth && fabs(depth - s->depth_um) > s->cfg.tol_um + MD_SERVO_NOISE_UM && !s->rechecking) {
+            s->rechecking = true; /* the carrier has not moved since the last move: d0 once more */
+            s->stats.rechecks++;
+            *remeasure = true;
+            return MD_SERVO_R_NONE;
+        }
+        s->rechecking = false;
+        set_region(s, depth);
+        return MD_SERVO_R_NONE;
+    }
+    if (!displacement_plausible(s, depth - s->before_um)) {
+        if (!s->rechecking) {
+            s->rechecking = true;
+            s->stats.rechecks++;
+            *remeasure = true;
+            return MD_SERVO_R_NONE;
+        }
+        return MD_SERVO_R_RUNAWAY; /* confirmed by independent readings */
+    }
+    s->rechecking = false;
+    return learn_step(s, depth - s->before_um) ? MD_SERVO_R_STALL : MD_SERVO_R_NONE;
 }
 
 static md_servo_action_t measure(md_servo_t *s)
@@ -304,27 +433,21 @@ static md_servo_action_t measure(md_servo_t *s)
     md_servo_action_t a = {MD_SERVO_A_NONE, 0u, 0u, 0u, 0u};
     double depth = 0.0;
     if (!s->calibrated || s->fresh < s->cfg.avg_n || md_servo_depth_um(s, &depth) != MD_OK) {
-        if (s->waits >= s->cfg.max_waits) {
-            finish(s, MD_SERVO_R_NO_SENSOR);
-            a.kind = MD_SERVO_A_FINISHED;
-            return a;
-        }
-        s->waits++;
-        a.kind = MD_SERVO_A_WAIT;
-        a.wait_us = s->cfg.wait_us;
-        return a;
+        return (s->waits >= s->cfg.max_waits) ? finished_action(s, MD_SERVO_R_NO_SENSOR) : wait_action(s);
     }
     s->waits = 0u;
-    if (!s->have_start) {
-        set_region(s, depth);
-    } else if (learn_step(s, depth - s->before_um)) {
-        finish(s, MD_SERVO_R_STALL);
-        a.kind = MD_SERVO_A_FINISHED;
-        return a;
+    bool remeasure = false;
+    md_servo_result_t r = check_measurement(s, depth, &remeasure);
+    if (remeasure) {
+        md_servo_clear_readings(s); /* independent readings, not the same ones again */
+        return wait_action(s);
+    }
+    if (r != MD_SERVO_R_NONE) {
+        return finished_action(s, r);
     }
     s->depth_um = depth;
+    s->have_depth = true;
     const double tol = s->cfg.tol_um;
-    md_servo_result_t r = MD_SERVO_R_NONE;
     if (depth < s->region_lo_um - tol || depth > s->region_hi_um + tol) {
         r = MD_SERVO_R_OUT_OF_REGION;
     } else if (fabs(s->goal_um - depth) <= tol) {
@@ -338,14 +461,13 @@ static md_servo_action_t measure(md_servo_t *s)
         r = MD_SERVO_R_NOT_CONVERGED; /* no step fits safely: as close as it gets */
     }
     if (r != MD_SERVO_R_NONE) {
-        finish(s, r);
-        a.kind = MD_SERVO_A_FINISHED;
-        return a;
+        return finished_action(s, r);
     }
     s->iter++;
     s->before_um = depth;
     s->cmd_dir = (k == 0u) ? (uint8_t)MD_ACT_DIR_ADVANCE : (uint8_t)MD_ACT_DIR_RETRACT;
     s->cmd_steps = n;
+    s->cmd_travel_um[k] += (double)n * worst_step_um(s, k);
     s->phase = MD_SERVO_MOVING;
     s->stats.commands++;
     s->stats.steps += n;
@@ -374,7 +496,7 @@ md_servo_action_t md_servo_next(md_servo_t *s)
 
 const char *md_servo_result_name(md_servo_result_t r)
 {
-    static const char *const NAMES[] = {"none",    "converged", "not_converged", "stall",  "end_stop",
-                                        "fault",   "no_sensor", "out_of_region", "aborted"};
+    static const char *const NAMES[] = {"none",  "converged", "not_converged", "stall",   "end_stop",
+                                        "fault", "no_sensor", "out_of_region", "aborted", "runaway"};
     return ((size_t)r < sizeof NAMES / sizeof NAMES[0]) ? NAMES[r] : "?";
 }

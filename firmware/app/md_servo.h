@@ -19,8 +19,20 @@
 ///   the depth d0 measured when the move starts (Δmax per cycle);
 /// - a command never plans to pass the region's edge even if the steps were
 ///   MD_SERVO_STEP_SAFETY times longer than learned;
+/// - the steps commanded in one move, each direction counted at its learned
+///   step length (at least MD_SERVO_STEP_FLOOR × step_nm), never add up to more
+///   than the distance from d0 to the region's edge: a sensor that stops
+///   following (stuck, dead) cannot make the servo command more than Δmax;
 /// - stalls (ACT_STATUS stalled, or no Hall change for a commanded travel),
-///   end stops and actuator faults end the move (no retry);
+///   end stops and actuator faults end the move (no retry). A no-change stall
+///   marks the sensor suspect: the next move does not start while every
+///   fresh reading still repeats the stuck code;
+/// - a measured displacement against the commanded direction, or far beyond
+///   the commanded travel, is measured again from independent readings (one
+///   Hall glitch must not stop the electrode); if it persists the actuator is
+///   running away (slipping): the move ends and motion is LATCHED off until
+///   md_servo_init() or md_servo_clear_fault() (operator action);
+/// - depths are the median of the readings (robust to Hall glitches);
 /// - no calibration or no fresh readings: no motion.
 /// The caller decides WHETHER to move at all (SFSM, node state, recording).
 #ifndef MD_SERVO_H
@@ -38,6 +50,11 @@
 #define MD_SERVO_STALL_FRACTION 0.25  ///< less Hall travel than this × expected counts as "no motion"
 #define MD_SERVO_STALL_MIN_UM 2.0     ///< expected travel below this is never judged a stall
 #define MD_SERVO_STALL_REPEATS 2u     ///< consecutive no-motion moves before a stall is declared
+#define MD_SERVO_NOISE_UM 1.0         ///< allowance for the median's Hall noise in the motion checks
+/// The per-move travel budget counts a step as at least this fraction of
+/// step_nm: stick-slip retract steps run 0.8-0.9 of the advance step, so the
+/// learned length is used, but a drifting estimate cannot buy many more steps.
+#define MD_SERVO_STEP_FLOOR 0.75
 #define MD_SERVO_CAL_INDEX_MID 0xF0u  ///< HALL_CALIB CoeffIndex of code_mid (DBC comment)
 #define MD_SERVO_CAL_INDEX_HALF 0xF1u ///< HALL_CALIB CoeffIndex of code_half
 
@@ -78,7 +95,8 @@ typedef enum {
     MD_SERVO_R_FAULT,           ///< actuator fault (e.g. its e-stop) or a command refused
     MD_SERVO_R_NO_SENSOR,       ///< no calibration, or no fresh readings in time
     MD_SERVO_R_OUT_OF_REGION,   ///< measured depth left the allowed region (never planned)
-    MD_SERVO_R_ABORTED          ///< md_servo_abort()
+    MD_SERVO_R_ABORTED,         ///< md_servo_abort()
+    MD_SERVO_R_RUNAWAY          ///< motion against or far beyond the command, twice: motion latched off
 } md_servo_result_t;
 
 typedef enum {
@@ -94,6 +112,11 @@ typedef struct {
     uint32_t steps;         ///< steps commanded in total
     uint32_t clamped;       ///< targets clamped into the region
     uint32_t bad_readings;  ///< readings that the calibration turned into non-finite depths
+    uint32_t budget_limited;///< commands shortened by the per-move travel budget
+    uint32_t rechecks;      ///< implausible displacements measured again
+    uint32_t runaways;      ///< MD_SERVO_R_RUNAWAY (motion latched off)
+    uint32_t suspect_refusals; ///< moves refused because the sensor still repeats its stuck code
+    uint32_t latched_refusals; ///< md_servo_begin refused while motion is latched off
 } md_servo_stats_t;
 
 /// The servo of one electrode (caller-owned; ~0.8 kB).
@@ -120,7 +143,8 @@ typedef struct {
     double win_min_um, win_max_um, step_max_um;
     bool have_start;            ///< d0 measured (region known)
     double start_um;            ///< d0
-    double depth_um;            ///< latest measured depth of this move
+    double depth_um;            ///< latest depth measured by a move (this one or the last)
+    bool have_depth;            ///< depth_um is set
     double before_um;           ///< depth measured before the command in flight
     uint8_t iter;               ///< commands issued in this move
     uint8_t waits;              ///< consecutive waits for readings
@@ -128,6 +152,11 @@ typedef struct {
     uint8_t cmd_seq;            ///< Seq of the command in flight
     uint8_t cmd_dir;
     uint16_t cmd_steps;
+    double cmd_travel_um[2];    ///< travel commanded in this move, [0] advance, [1] retract (worst-case step)
+    bool rechecking;            ///< an implausible displacement is being measured again
+    bool hall_suspect;          ///< the last stall showed no Hall change at all
+    uint16_t stuck_code;        ///< the code the suspect sensor repeated
+    bool motion_latched;        ///< runaway seen: no move until md_servo_init / md_servo_clear_fault
     md_servo_stats_t stats;
 } md_servo_t;
 
@@ -164,14 +193,18 @@ void md_servo_reading(md_servo_t *s, uint16_t code);
 /// Forgets the readings (they no longer describe the position). O(1).
 void md_servo_clear_readings(md_servo_t *s);
 
-/// Mean depth of the latest min(avg_n, kept) readings. MD_E_STATE without a
-/// calibration or readings, MD_E_NUMERIC if a depth is not finite. O(avg_n · count).
+/// Median depth of the readings kept since the last clear (up to
+/// MD_SERVO_AVG_MAX; a move measures with avg_n of them): a median, not a
+/// mean, so that a glitching sensor's outliers do not move the depth.
+/// MD_E_STATE without a calibration or readings, MD_E_NUMERIC if a depth is
+/// not finite. O(MD_SERVO_AVG_MAX · (count + MD_SERVO_AVG_MAX)).
 md_status_t md_servo_depth_um(const md_servo_t *s, double *depth_um);
 
 /// Starts a move to target_um inside [win_min_um, win_max_um] and at most
 /// step_max_um from the depth measured first (fresh readings are collected
 /// before anything moves). MD_E_ARG on non-finite or inconsistent arguments
-/// (nothing changes), MD_E_STATE if a move is in progress. O(1).
+/// (nothing changes), MD_E_STATE if a move is in progress or motion is
+/// latched off after a runaway (counted). O(1).
 md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um,
                            double step_max_um);
 
@@ -192,6 +225,13 @@ md_servo_action_t md_servo_next(md_servo_t *s);
 /// Ends a move at once (e-stop, node left operational). The caller halts
 /// the actuator. Result MD_SERVO_R_ABORTED if a move was in progress. O(1).
 void md_servo_abort(md_servo_t *s);
+
+/// Lifts the motion latch of a runaway (the operator has checked the
+/// actuator) and forgets a suspect sensor. O(1).
+void md_servo_clear_fault(md_servo_t *s);
+
+/// True while motion is latched off after a runaway.
+bool md_servo_latched(const md_servo_t *s);
 
 /// True while a move is in progress.
 bool md_servo_busy(const md_servo_t *s);

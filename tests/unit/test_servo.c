@@ -22,6 +22,9 @@ typedef struct {
     double noise_codes;      /* reading noise, uniform +- */
     double lower_stop_um;    /* steps beyond stall at the stop */
     int stuck;               /* steps do nothing, reported idle */
+    int frozen;              /* the sensor repeats frozen_code whatever the position */
+    uint16_t frozen_code;
+    double slip_back_um;     /* > 0: every step moves this far AGAINST the command (runaway) */
     int fault;               /* every command answered with fault */
     uint32_t rng;
     double max_pos, min_pos; /* extremes reached */
@@ -50,6 +53,9 @@ static void plant_init(plant_t *p, double pos)
 
 static uint16_t plant_code(plant_t *p)
 {
+    if (p->frozen) {
+        return p->frozen_code;
+    }
     const double c = CODE_MID + CODES_PER_UM * (p->pos_um - 2800.0) + p->noise_codes * urand(p);
     return (uint16_t)floor(c + 0.5);
 }
@@ -81,7 +87,10 @@ static void plant_step(plant_t *p, md_servo_t *s, const md_servo_action_t *a)
             done++;
             continue;
         }
-        const double len = ((dir > 0) ? p->adv_um : p->ret_um) * (1.0 + p->cv * urand(p));
+        double len = ((dir > 0) ? p->adv_um : p->ret_um) * (1.0 + p->cv * urand(p));
+        if (p->slip_back_um > 0.0) {
+            len = -p->slip_back_um;
+        }
         const double next = p->pos_um + (double)dir * len;
         if (next >= p->lower_stop_um) {
             p->pos_um = p->lower_stop_um;
@@ -191,11 +200,20 @@ static void test_averaging(void)
     calibrate(&s);
     double d = 0.0;
     TEST_ASSERT_EQUAL_INT(MD_E_STATE, md_servo_depth_um(&s, &d));
-    for (int i = 0; i < 10; ++i) {
-        md_servo_reading(&s, (uint16_t)(i < 5 ? 30000 : 32768 + (i % 2 == 0 ? 1 : -1)));
+    /* the median of every kept reading: 4 far ones of 11 do not move it */
+    for (int i = 0; i < 11; ++i) {
+        md_servo_reading(&s, (uint16_t)(i < 4 ? 30000 : 32768 + (i % 2 == 0 ? 1 : -1)));
     }
-    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_depth_um(&s, &d)); /* the latest 5: 32767/32769 */
-    TEST_ASSERT_DOUBLE_WITHIN(0.2 / 5.0 + 1e-9, 2800.0, d);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_depth_um(&s, &d));
+    TEST_ASSERT_DOUBLE_WITHIN(0.2 + 1e-9, 2800.0, d);
+    /* even count: the mean of the two middle ones */
+    md_servo_clear_readings(&s);
+    md_servo_reading(&s, 32768u);
+    md_servo_reading(&s, 32770u);
+    md_servo_reading(&s, 60000u);
+    md_servo_reading(&s, 1000u);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_depth_um(&s, &d));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 2800.2, d);
 }
 
 static void test_converges_both_directions_and_learns(void)
@@ -373,6 +391,116 @@ static void test_abort_and_begin_rules(void)
     TEST_ASSERT_TRUE(md_servo_busy(&s));
 }
 
+/* Hazard H10 (docs/safety.md): a sensor that freezes while the drive moves.
+ * The travel commanded in one move stays within Δmax whatever the sensor
+ * says, and no move starts while the sensor still repeats its frozen code. */
+static void test_frozen_sensor_bounds_travel_and_blocks_next_move(void)
+{
+    md_servo_t s;
+    plant_t p;
+    servo_new(&s);
+    calibrate(&s);
+    plant_init(&p, 1000.0);
+    p.frozen_code = plant_code(&p);
+    p.frozen = 1;
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, 1020.0, 0.0, 5000.0, 30.0));
+    (void)run_move(&p, &s, 6);
+    TEST_ASSERT_EQUAL_INT(MD_SERVO_R_STALL, s.result);
+    TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(1000.0 + 30.0 * (0.047 * 1.1 / 0.040) + 1e-9, p.max_pos);
+    TEST_ASSERT_LESS_OR_EQUAL_UINT(750u, s.stats.steps); /* 30 um at the configured 40 nm */
+    TEST_ASSERT_GREATER_THAN_UINT(0u, s.stats.budget_limited);
+    TEST_ASSERT_TRUE(s.hall_suspect);
+    /* still frozen: the next move ends before any step */
+    const uint32_t cmds = p.commands;
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, 1040.0, 0.0, 5000.0, 30.0));
+    (void)run_move(&p, &s, 6);
+    TEST_ASSERT_EQUAL_INT(MD_SERVO_R_NO_SENSOR, s.result);
+    TEST_ASSERT_EQUAL_UINT32(cmds, p.commands);
+    TEST_ASSERT_EQUAL_UINT32(1u, s.stats.suspect_refusals);
+    /* the sensor comes back: moves resume, from the true depth */
+    p.frozen = 0;
+    const double here = p.pos_um;
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, here + 10.0, 0.0, 5000.0, 30.0));
+    (void)run_move(&p, &s, 6);
+    TEST_ASSERT_EQUAL_INT(MD_SERVO_R_CONVERGED, s.result);
+    TEST_ASSERT_DOUBLE_WITHIN(2.5, here + 10.0, p.pos_um);
+    TEST_ASSERT_FALSE(s.hall_suspect);
+}
+
+/* A drive that runs against its command (slip): measured twice from
+ * independent readings, then motion is latched off until cleared. */
+static void test_runaway_latches_motion_off(void)
+{
+    md_servo_t s;
+    plant_t p;
+    servo_new(&s);
+    calibrate(&s);
+    plant_init(&p, 1000.0);
+    p.slip_back_um = 0.1;
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, 1020.0, 0.0, 5000.0, 30.0));
+    (void)run_move(&p, &s, 6);
+    TEST_ASSERT_EQUAL_INT(MD_SERVO_R_RUNAWAY, s.result);
+    TEST_ASSERT_EQUAL_STRING("runaway", md_servo_result_name(s.result));
+    TEST_ASSERT_EQUAL_UINT32(1u, p.commands); /* no second command into a runaway */
+    TEST_ASSERT_EQUAL_UINT32(1u, s.stats.rechecks);
+    TEST_ASSERT_TRUE(md_servo_latched(&s));
+    TEST_ASSERT_EQUAL_INT(MD_E_STATE, md_servo_begin(&s, 1020.0, 0.0, 5000.0, 30.0));
+    TEST_ASSERT_EQUAL_UINT32(1u, s.stats.latched_refusals);
+    TEST_ASSERT_FALSE(md_servo_busy(&s));
+    /* the operator clears it; a healthy drive moves again */
+    p.slip_back_um = 0.0;
+    md_servo_clear_fault(&s);
+    TEST_ASSERT_FALSE(md_servo_latched(&s));
+    const double here = p.pos_um;
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, here + 10.0, 0.0, 5000.0, 30.0));
+    (void)run_move(&p, &s, 6);
+    TEST_ASSERT_EQUAL_INT(MD_SERVO_R_CONVERGED, s.result);
+}
+
+/* Hall glitches: one implausible measurement is measured again, not
+ * believed, and does not latch anything. */
+static void test_single_glitch_is_measured_again(void)
+{
+    md_servo_t s;
+    plant_t p;
+    servo_new(&s);
+    calibrate(&s);
+    plant_init(&p, 1000.0);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, 1020.0, 0.0, 5000.0, 30.0));
+    int glitched = 0;
+    for (uint32_t guard = 0u; guard < 200u; ++guard) {
+        const md_servo_action_t a = md_servo_next(&s);
+        if (a.kind == MD_SERVO_A_FINISHED) {
+            break;
+        }
+        if (a.kind == MD_SERVO_A_STEP) {
+            plant_step(&p, &s, &a);
+        } else if (a.kind == MD_SERVO_A_WAIT) {
+            const int glitch_now = (p.commands == 1u && !glitched);
+            for (int i = 0; i < 6; ++i) { /* after the first command: 4 of 6 readings +2000 codes */
+                const uint16_t c = plant_code(&p);
+                md_servo_reading(&s, (uint16_t)(glitch_now && i < 4 ? c + 2000u : c));
+            }
+            glitched |= glitch_now;
+        }
+    }
+    TEST_ASSERT_TRUE(glitched);
+    TEST_ASSERT_EQUAL_INT(MD_SERVO_R_CONVERGED, s.result);
+    TEST_ASSERT_DOUBLE_WITHIN(2.5, 1020.0, p.pos_um);
+    TEST_ASSERT_EQUAL_UINT32(1u, s.stats.rechecks);
+    TEST_ASSERT_FALSE(md_servo_latched(&s));
+    /* and a glitched start depth is measured again too (the carrier has not moved) */
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, 1030.0, 0.0, 5000.0, 30.0));
+    for (int i = 0; i < 6; ++i) {
+        md_servo_reading(&s, (uint16_t)(plant_code(&p) + 2000u));
+    }
+    TEST_ASSERT_EQUAL_INT(MD_SERVO_A_WAIT, md_servo_next(&s).kind);
+    TEST_ASSERT_EQUAL_UINT32(2u, s.stats.rechecks);
+    (void)run_move(&p, &s, 6);
+    TEST_ASSERT_EQUAL_INT(MD_SERVO_R_CONVERGED, s.result);
+    TEST_ASSERT_DOUBLE_WITHIN(2.5, 1030.0, p.pos_um);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -389,5 +517,8 @@ int main(void)
     RUN_TEST(test_no_sensor_no_motion);
     RUN_TEST(test_bounded_iterations);
     RUN_TEST(test_abort_and_begin_rules);
+    RUN_TEST(test_frozen_sensor_bounds_travel_and_blocks_next_move);
+    RUN_TEST(test_runaway_latches_motion_off);
+    RUN_TEST(test_single_glitch_is_measured_again);
     return UNITY_END();
 }
