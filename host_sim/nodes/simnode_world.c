@@ -260,6 +260,22 @@ uint64_t simnode_world_adc_clipped(const simnode_world_t *w)
     return n;
 }
 
+simnode_world_fault_counts_t simnode_world_fault_counts(const simnode_world_t *w)
+{
+    simnode_world_fault_counts_t c;
+    memset(&c, 0, sizeof c);
+    for (uint32_t e = 0; e < w->sim.n_electrodes; e++) {
+        const sim_electrode_t *el = &w->sim.el[e];
+        c.hall_glitches += el->hall_fault.glitches;
+        c.hall_stuck_reads += el->hall_fault.stuck_reads;
+        c.act_stalls += el->act.fault_stalls;
+        c.act_slips += el->act.fault_slips;
+        c.storm_events += el->sig_fault.storm_events;
+        c.saturated_samples += el->sig_fault.saturated_samples;
+    }
+    return c;
+}
+
 void simnode_world_set_truth(simnode_world_t *w, FILE *f)
 {
     w->truth = f;

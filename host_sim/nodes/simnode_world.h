@@ -115,6 +115,15 @@ md_status_t simnode_world_record_next(simnode_world_t *w, uint32_t e, uint32_t n
 /// simnode_world_advance.
 void simnode_world_record_stop(simnode_world_t *w, uint32_t e);
 
+/// Injected model faults that happened so far, summed over the electrodes
+/// (host_sim/model/sim_fault.h): what a reader of a faulty session's output
+/// needs to see that the fault really acted.
+typedef struct {
+    uint64_t hall_glitches, hall_stuck_reads;
+    uint64_t act_stalls, act_slips;
+    uint64_t storm_events, saturated_samples;
+} simnode_world_fault_counts_t;
+simnode_world_fault_counts_t simnode_world_fault_counts(const simnode_world_t *w);
 /// Samples the ADC saturated so far (all electrodes).
 uint64_t simnode_world_adc_clipped(const simnode_world_t *w);
 

@@ -4,12 +4,13 @@ in-process session, each frame log and truth checked by tools/safety/check_invar
 
 usage: test_fault_campaign.py --session BIN/microdrive-session --work DIR [--seeds N] [--cycles N]
 
-Fails if any run violates an invariant, leaves no log, or shows no trace of its fault (a bus,
-silence or restart fault whose counters stayed at zero: the hook is not wired), EXCEPT the
+Fails if any run violates an invariant, leaves no log, or shows no trace of its fault (a fault
+whose counter microdrive-session prints stayed at zero: the hook is not wired), EXCEPT the
 violations listed in KNOWN_OPEN below: findings of the campaign in units this test does not own
-(docs/fault-campaign.md, "Open findings"; tools/safety/campaign_findings.md), tolerated by (kind, invariant) exactly like the fuzz
-harness switches, so that every other invariant keeps guarding. A known-open entry whose run no
-longer violates it makes the test fail too ("fixed: remove it"), so the list cannot go stale.
+(docs/fault-campaign.md, "Open findings"; tools/safety/campaign_findings.md), tolerated by
+(kind, invariant) exactly like the fuzz harness switches, so that every other invariant keeps
+guarding. A known-open entry that no longer occurs is printed as a NOTE (fixed? remove it) but
+does not fail the test: the fixes land in another engineer's files while this list is here.
 ~1-2 s per run on the shared 2-core VM: 15 runs well under a minute.
 """
 import argparse
@@ -36,7 +37,9 @@ KNOWN_OPEN = {
 COUNTED = {"bus_loss": "loss", "bus_corrupt": "corrupt", "bus_dup": "dup", "bus_delay": "delay",
            "bus_reorder": "reorder", "node_silent_act": "silenced heartbeats",
            "node_silent_hall": "silenced heartbeats", "node_silent_fe": "silenced heartbeats",
-           "controller_restart": "restarts"}
+           "controller_restart": "restarts", "hall_glitch": "hall glitches", "hall_stuck": "hall stuck reads",
+           "actuator_stall": "actuator stalls", "actuator_slip": "actuator slips",
+           "artifact_storm": "storm events", "adc_saturation": "saturated samples"}
 
 
 def main():
@@ -73,7 +76,7 @@ def main():
                 fails.append(f"{kind} seed {r['seed']}: no {COUNTED[kind]} counted: the fault was not injected")
     for ko in sorted(KNOWN_OPEN - seen_open):
         if ko[0] in rows:
-            fails.append(f"{ko[0]}: known-open {ko[1]} no longer violated: fixed? remove it from KNOWN_OPEN")
+            print(f"NOTE {ko[0]}: known-open {ko[1]} no longer violated: fixed? remove it from KNOWN_OPEN")
     for f in fails:
         print("FAIL", f)
     print(f"{sum(len(r) for r in rows.values())} runs, {len(fails)} failures, "

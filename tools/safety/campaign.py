@@ -39,6 +39,8 @@ RE_BUS = re.compile(r"bus fault \d+: frames seen (\d+), loss (\d+), corrupt (\d+
                     r"delay (\d+), reorder (\d+), hold full (\d+)")
 RE_SILENT = re.compile(r"node silence: frames swallowed act (\d+), hall (\d+), fe (\d+); heartbeats not sent (\d+)")
 RE_RESTART = re.compile(r"controller restarts: (\d+) of (\d+)")
+RE_MODEL = re.compile(r"model faults: hall glitches (\d+), hall stuck reads (\d+), actuator stalls (\d+), "
+                      r"actuator slips (\d+), storm events (\d+), saturated samples (\d+)")
 
 
 def injected(stderr):
@@ -52,6 +54,10 @@ def injected(stderr):
         c["silenced heartbeats"] = int(m.group(4))
     for m in RE_RESTART.finditer(stderr):
         c["restarts"] = int(m.group(1))
+    for m in RE_MODEL.finditer(stderr):
+        for name, v in zip(("hall glitches", "hall stuck reads", "actuator stalls", "actuator slips",
+                            "storm events", "saturated samples"), m.groups()):
+            c[name] = int(v)
     return c
 
 
@@ -128,7 +134,7 @@ def write_doc(a, rows, path):
         for r in rs:
             for k, v in r["injected"].items():
                 inj[k] = inj.get(k, 0) + v
-        inj_s = ", ".join(f"{k} {v}" for k, v in inj.items() if v) or "(model fault: see text)"
+        inj_s = ", ".join(f"{k} {v}" for k, v in inj.items() if v) or "none"
         sims = [r["sim_s"] for r in rs if r["sim_s"] is not None]
         sim_min = f"{min(sims):.0f}" if sims else "?"
         lines.append(f"| {kind} | {len(rs)} | {ended} | {passed} | " + " | ".join(map(str, per))
@@ -137,9 +143,10 @@ def write_doc(a, rows, path):
               "Invariant columns count runs with at least one violation of that invariant. "
               "`ended`: the session reached its goal or went idle before the timeout. "
               "`sim s (min)`: the shortest simulated time among the runs (the fault windows must fall "
-              "inside it). Model faults (hall_*, actuator_*, adc_saturation, artifact_storm) act inside "
-              "the simulator's models and print no counter; their effect is visible in the logs "
-              "(test_sim_fault checks each model).", ""]
+              "inside it). `injected`: the fault counters microdrive-session prints at the end (bus "
+              "faults per kind, frames and heartbeats of silent nodes, restarts, and the model faults "
+              "that acted: Hall glitches / stuck reads, actuator stalls / slips, storm transients, "
+              "saturated samples).", ""]
     bad = [(kind, r) for kind, rs in rows.items() for r in rs if not (r["summary"] and r["summary"]["ok"])]
     if bad:
         lines += ["## Violations (first three per run)", ""]

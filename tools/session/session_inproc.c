@@ -360,6 +360,16 @@ static session_end_t inproc_loop(inproc_t *ip, uint64_t idle_us)
  * the faults happened (docs/safety.md). Nothing when the scenario has none. */
 static void print_faults(const inproc_t *ip)
 {
+    const simnode_world_fault_counts_t m = simnode_world_fault_counts(ip->plant.world);
+    if (m.hall_glitches + m.hall_stuck_reads + m.act_stalls + m.act_slips + m.storm_events + m.saturated_samples >
+        0u) {
+        fprintf(stderr,
+                "microdrive-session: model faults: hall glitches %" PRIu64 ", hall stuck reads %" PRIu64
+                ", actuator stalls %" PRIu64 ", actuator slips %" PRIu64 ", storm events %" PRIu64
+                ", saturated samples %" PRIu64 "\n",
+                m.hall_glitches, m.hall_stuck_reads, m.act_stalls, m.act_slips, m.storm_events,
+                m.saturated_samples);
+    }
     for (uint32_t i = 0; i < ip->n_fault; i++) {
         const md_bus_fault_counters_t c = md_bus_fault_counters(&ip->fault[i]);
         fprintf(stderr, "microdrive-session: bus fault %u: frames seen %" PRIu64, (unsigned)i, c.frames_seen);
@@ -400,7 +410,9 @@ session_end_t session_run_inproc(const session_opts_t *o, const char *resolved_b
     if (open_endpoints(ip, resolved_bus) == 0 && start_nodes(ip, world) == 0) {
         end = inproc_loop(ip, (uint64_t)(o->idle_s * 1e6));
     }
-    print_faults(ip);
+    if (ip->plant.world != NULL) {
+        print_faults(ip);
+    }
     md_bus_close(&ip->rec_ep);
     md_bus_close(&ip->ctrl_ep);
     md_bus_close((ip->plant_bus != NULL) ? ip->plant_bus : &ip->plant_ep);   /* closes the wrappers' chain */
