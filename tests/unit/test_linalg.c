@@ -199,6 +199,22 @@ static void test_matmul_and_all_finite(void)
     TEST_ASSERT_FALSE(linalg_all_finite(NULL, 3));
 }
 
+/* Entries near the ends of the double range: the convergence test must not
+ * overflow / underflow into "converged" before any rotation. */
+static void test_jacobi_extreme_scales(void)
+{
+    const double scales[3] = {1e200, 1e-200, 1.0};
+    for (size_t k = 0u; k < 3u; ++k) {
+        double a[4] = {2.0 * scales[k], 1.0 * scales[k], 1.0 * scales[k], 2.0 * scales[k]};
+        double vals[2];
+        double vecs[4];
+        TEST_ASSERT_EQUAL_INT(MD_OK, linalg_sym_eigen(a, 2, vals, vecs, 20));
+        TEST_ASSERT_DOUBLE_WITHIN(1e-12, 3.0, vals[0] / scales[k]);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1.0, vals[1] / scales[k]);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1.0 / sqrt(2.0), fabs(vecs[0])); /* (1, 1)/sqrt 2, not the axes */
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -210,5 +226,6 @@ int main(void)
     RUN_TEST(test_jacobi_larger_matrix_is_orthonormal_decomposition);
     RUN_TEST(test_jacobi_reports_noconverge_and_bad_input);
     RUN_TEST(test_matmul_and_all_finite);
+    RUN_TEST(test_jacobi_extreme_scales);
     return UNITY_END();
 }

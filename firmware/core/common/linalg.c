@@ -241,6 +241,28 @@ static void linalg_sort_eigen(double *vals, double *vecs, size_t n)
     }
 }
 
+/* Exponent e of max|x_i| (frexp: max in [2^(e-1), 2^e)); 0 if all are 0. */
+static int linalg_pow2_exponent(const double *x, size_t count)
+{
+    double m = 0.0;
+    for (size_t i = 0u; i < count; ++i) {
+        m = fmax(m, fabs(x[i]));
+    }
+    int e = 0;
+    if (m > 0.0) {
+        (void)frexp(m, &e);
+    }
+    return e;
+}
+
+/* x_i *= 2^e, exactly (barring underflow of entries negligible next to the largest). */
+static void linalg_ldexp_all(double *x, size_t count, int e)
+{
+    for (size_t i = 0u; i < count; ++i) {
+        x[i] = ldexp(x[i], e);
+    }
+}
+
 md_status_t linalg_sym_eigen(double *a, size_t n, double *eigvals, double *eigvecs, unsigned max_sweeps)
 {
     if ((a == NULL) || (eigvals == NULL) || (eigvecs == NULL) || !linalg_size_ok(n) || (max_sweeps == 0u)) {
@@ -260,6 +282,11 @@ md_status_t linalg_sym_eigen(double *a, size_t n, double *eigvals, double *eigve
             }
         }
     }
+    /* Work on a / 2^e, 2^e ~ max|a_ij| (exact): the convergence test squares
+     * entries, which overflows above ~1e154 and underflows below ~1e-154 and
+     * would then report "converged" before any rotation. */
+    const int scale_exp = linalg_pow2_exponent(a, n * n);
+    linalg_ldexp_all(a, n * n, -scale_exp);
     int converged = 0;
     for (unsigned sweep = 0u; (sweep <= sweeps) && !converged; ++sweep) {
         double off = 0.0;
@@ -280,6 +307,7 @@ md_status_t linalg_sym_eigen(double *a, size_t n, double *eigvals, double *eigve
             /* last pass only measured: fall out unconverged */
         }
     }
+    linalg_ldexp_all(a, n * n, scale_exp); /* a holds the rotated matrix, as before */
     for (size_t i = 0u; i < n; ++i) {
         eigvals[i] = a[i * n + i];
     }
