@@ -336,6 +336,8 @@ md_status_t bench_setup(void)
     g_info.hyp = (uint32_t)g_mh_res.n_hyp;
     g_info.tracks = (uint32_t)g_mh_res.n_tracks;
     g_info.models = (uint32_t)g_mh_res.models_fitted;
+    g_info.reused = g_mh.stats.models_reused - g_mh_saved.stats.models_reused;
+    g_info.shared = g_mh.stats.models_shared - g_mh_saved.stats.models_shared;
     g_info.cluster_best_g = (uint32_t)g_cl_res.best_g;
     g_ready = 1;
     return MD_OK;

@@ -64,6 +64,8 @@ typedef struct {
     uint32_t hyp;          ///< MHTC hypotheses after the measured step
     uint32_t tracks;       ///< tracks of the leading hypothesis
     uint32_t models;       ///< model hypotheses MHTC clustered in the measured step
+    uint32_t reused;       ///< of those, how many reused a similar parent's EM fit (no EM of their own)
+    uint32_t shared;       ///< of those, how many were copied from a parent with the same track records
     uint32_t cluster_best_g; ///< best G of clustering alone
 } bench_info_t;
 

@@ -317,7 +317,7 @@ static bool mhtc_reuse_model(mhtc_state_t *st, const em_data_t *data, mhtc_works
 /* Donor model of class g among slots [first, first + count), or NULL. */
 static const mhtc_model_t *mhtc_donor(const mhtc_workspace_t *ws, size_t first, size_t count, size_t g)
 {
-    for (size_t m = first; (m < first + count) && (m < MHTC_MODELS_MAX); ++m) {
+    for (size_t m = first; (m < first + count) && (m < sizeof ws->model / sizeof ws->model[0]); ++m) {
         if (ws->model[m].g == g) {
             return &ws->model[m];
         }
@@ -461,7 +461,7 @@ static bool mhtc_prior_close(const mhtc_state_t *st, const mhtc_workspace_t *ws,
  * identical prior: exact sharing, the EM is deterministic in its inputs. */
 static void mhtc_share_models(mhtc_state_t *st, mhtc_workspace_t *ws, size_t first, size_t count, size_t p)
 {
-    for (size_t m = first; (m < first + count) && (ws->n_models < MHTC_MODELS_MAX); ++m) {
+    for (size_t m = first; (m < first + count) && (ws->n_models < sizeof ws->model / sizeof ws->model[0]); ++m) {
         ws->model[ws->n_models] = ws->model[m];
         ws->model[ws->n_models].parent = (uint8_t)p;
         ws->n_models++;
