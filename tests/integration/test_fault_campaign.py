@@ -23,15 +23,14 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 CAMPAIGN = os.path.join(ROOT, "tools", "safety", "campaign.py")
 
-# (kind, invariant): open findings in firmware/app/md_servo.c (docs/fault-campaign.md).
+# (kind, invariant) -> violations tolerated per run. actuator_slip: 20 % of the steps of one
+# advance command slip 2 um back, so the drive itself carries the electrode ~190 um shallower
+# during the first faulty move, whatever was commanded (<= Delta_max): the controller can only
+# detect it afterwards, and must then stop (md_servo latches a runaway, commit 00db7cb). One
+# violation of each per run is that first move; a second one means the controller went on.
 KNOWN_OPEN = {
-    ("hall_stuck", "step_cmd"),     # F1: 2 x 501 steps with a stuck sensor = 40 um > Delta_max
-    ("hall_stuck", "step_meas"),    # F1: the moves the stuck sensor did not see show up at once
-    ("hall_stuck", "step_true"),    # F1: the true tip moves 40 um per cycle
-    ("actuator_slip", "step_true"), # F2: the true tip runs back ~190 um per cycle
-    ("actuator_slip", "step_cmd"),  # F2: the servo compensates slips beyond Delta_max
-    ("actuator_slip", "step_meas"), # F2: the electrode runs backwards, the cycle goes on
-    ("hall_glitch", "step_meas"),   # F3: mean of 5 readings is not robust to 10 % glitches
+    ("actuator_slip", "step_meas"): 1,
+    ("actuator_slip", "step_true"): 1,
 }
 # faults whose hook prints a counter: at least one must be non-zero
 COUNTED = {"bus_loss": "loss", "bus_corrupt": "corrupt", "bus_dup": "dup", "bus_delay": "delay",
@@ -66,15 +65,15 @@ def main():
             for inv, n in s["violations_by_invariant"].items():
                 if n == 0:
                     continue
-                if (kind, inv) in KNOWN_OPEN:
+                if n <= KNOWN_OPEN.get((kind, inv), 0):
                     seen_open.add((kind, inv))
-                    print(f"KNOWN OPEN {kind} seed {r['seed']}: {inv} x{n}")
+                    print(f"KNOWN OPEN {kind} seed {r['seed']}: {inv} x{n} (<= {KNOWN_OPEN[(kind, inv)]})")
                 else:
                     first = next(v for v in s["violations"] if v["invariant"] == inv)
                     fails.append(f"{kind} seed {r['seed']}: {inv} x{n}, first at {first['t']} s: {first['what']}")
             if kind in COUNTED and r["injected"].get(COUNTED[kind], 0) == 0:
                 fails.append(f"{kind} seed {r['seed']}: no {COUNTED[kind]} counted: the fault was not injected")
-    for ko in sorted(KNOWN_OPEN - seen_open):
+    for ko in sorted(set(KNOWN_OPEN) - seen_open):
         if ko[0] in rows:
             print(f"NOTE {ko[0]}: known-open {ko[1]} no longer violated: fixed? remove it from KNOWN_OPEN")
     for f in fails:
