@@ -338,11 +338,11 @@ static void run_two_neurons(double share, uint64_t seed)
 
 static void test_similar_priors_reuse_fits(void)
 {
-    run_two_neurons(0.0, 7u);
+    run_two_neurons(0.0, 10u);
     TEST_ASSERT_EQUAL_UINT32(0u, g_st.stats.models_reused);
     const mhtc_result_t ref = g_out;
     memcpy(g_labels_ref, g_out.labels, sizeof g_labels_ref);
-    run_two_neurons(MHTC_SHARE_JEFFREYS_DEFAULT, 7u);
+    run_two_neurons(MHTC_SHARE_JEFFREYS_DEFAULT, 10u);
     TEST_ASSERT_GREATER_THAN_UINT(0u, g_st.stats.models_reused);
     TEST_ASSERT_EQUAL_size_t(ref.n_tracks, g_out.n_tracks);
     for (size_t j = 0u; j < ref.n_tracks; ++j) {
