@@ -13,6 +13,7 @@
 #define US_PER_MS 1000u
 #define US_PER_S 1000000u
 #define ANSWER_MARGIN_US ((uint64_t)5u * US_PER_S) /* platform-time slack on every wait for an answer */
+#define LOCKSTEP_LOST_US ((uint64_t)30u * US_PER_S) /* lockstep: no answer frame this long = a lost frame */
 #define SERVO_ACTIONS_PER_POLL 4u         /* servo actions taken in one poll at most */
 #define STEP_EPS_UM 1e-6                  /* a smaller SFSM step is no step */
 #define REC_SAMPLES_MAX (30u * 65536u)    /* REC_REQ bound of the front-end (Seq range × 30) */
@@ -142,15 +143,28 @@ static uint64_t answer_deadline_us(const md_cycle_t *c)
     if (!c->lockstep) {
         return c->timeout_wall_us;
     }
-    const uint64_t silence = c->plant_alive_us + ANSWER_MARGIN_US;
-    return (silence > c->timeout_wall_us) ? silence : c->timeout_wall_us;
+    /* Dead plant: nothing for 5 s. Live plant that lost our request or its
+     * answer (a socket bus under load): heartbeats but no answer frame for
+     * 30 s since the request or the last answer, far beyond what even the
+     * ~20x slower vcan VM needs between two answer frames. */
+    const uint64_t dead = c->plant_alive_us + ANSWER_MARGIN_US;
+    const uint64_t lost = c->answer_us + LOCKSTEP_LOST_US;
+    const uint64_t d = (dead < lost) ? dead : lost;
+    return (d > c->timeout_wall_us) ? d : c->timeout_wall_us;
+}
+
+/* A request went out at now_us: its answer is due by deadline_us. */
+static void arm_timeout(md_cycle_t *c, uint64_t now_us, uint64_t deadline_us)
+{
+    c->timeout_wall_us = deadline_us;
+    c->answer_us = now_us;
 }
 
 static bool answer_late(const md_cycle_t *c, uint64_t now_us) { return now_us >= answer_deadline_us(c); }
 
 static void start_wait(md_cycle_t *c, md_node_t *node, uint32_t duration_us, uint64_t now_us)
 {
-    c->timeout_wall_us = now_us + duration_us + ANSWER_MARGIN_US;
+    arm_timeout(c, now_us, now_us + duration_us + ANSWER_MARGIN_US);
     if (duration_us == 0u) {
         c->wait = MD_WAIT_NONE;
         return;
@@ -249,7 +263,7 @@ static void start_recording(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     }
     el->phase = MD_CYC_RECORDING;
     c->wait = MD_WAIT_NONE;
-    c->timeout_wall_us = now_us + 2u * (uint64_t)n * US_PER_S / el->sample_rate_hz + ANSWER_MARGIN_US;
+    arm_timeout(c, now_us, now_us + 2u * (uint64_t)n * US_PER_S / el->sample_rate_hz + ANSWER_MARGIN_US);
     (void)md_tlm_cycle(node, c->active, el, MD_TLM_PHASE_REQUESTED, n);
 }
 
@@ -392,7 +406,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         el->moves++;
         el->phase = MD_CYC_MOVING;
         c->wait = MD_WAIT_NONE;
-        c->timeout_wall_us = now_us + ANSWER_MARGIN_US;
+        arm_timeout(c, now_us, now_us + ANSWER_MARGIN_US);
     } else {
         end_cycle(c, node); /* nothing moved: nothing to settle */
     }
@@ -425,7 +439,7 @@ static void drive_servo(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         case MD_SERVO_A_STEP:
             if (md_node_step(node, c->active, a.direction, a.steps, a.rate_hz) == MD_OK) {
                 md_servo_sent(&el->servo, node->electrode[c->active].act_seq);
-                c->timeout_wall_us = now_us + 2u * (uint64_t)a.steps * US_PER_S / a.rate_hz + ANSWER_MARGIN_US;
+                arm_timeout(c, now_us, now_us + 2u * (uint64_t)a.steps * US_PER_S / a.rate_hz + ANSWER_MARGIN_US);
             } else {
                 md_servo_send_failed(&el->servo);
             }
@@ -481,11 +495,16 @@ static void on_plant_frame(md_cycle_t *c, const md_frame_t *f)
     }
 }
 
+static bool heartbeat_frame(uint32_t id)
+{
+    return id == MD_CAN_HEARTBEAT_ACT_FRAME_ID || id == MD_CAN_HEARTBEAT_HALL_FRAME_ID ||
+           id == MD_CAN_HEARTBEAT_FE_FRAME_ID;
+}
+
 /* Frames only a live plant sends: its heartbeats and its answers. */
 static bool plant_frame(uint32_t id)
 {
-    return id == MD_CAN_HEARTBEAT_ACT_FRAME_ID || id == MD_CAN_HEARTBEAT_HALL_FRAME_ID ||
-           id == MD_CAN_HEARTBEAT_FE_FRAME_ID || id == MD_CAN_SIM_CLOCK_FRAME_ID || id == MD_CAN_REC_END_FRAME_ID ||
+    return heartbeat_frame(id) || id == MD_CAN_SIM_CLOCK_FRAME_ID || id == MD_CAN_REC_END_FRAME_ID ||
            id == MD_CAN_HALL_READING_FRAME_ID || id == MD_CAN_ACT_STATUS_FRAME_ID || id == MD_CAN_REC_DATA_FRAME_ID;
 }
 
@@ -496,6 +515,9 @@ void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool
     }
     if (accepted && plant_frame(f->id)) {
         c->plant_alive_us = now_us;
+        if (!heartbeat_frame(f->id)) {
+            c->answer_us = now_us;
+        }
     }
     if (f->id == MD_CAN_REC_DATA_FRAME_ID && (f->flags & MD_FRAME_FLAG_EXT) == 0u) {
         on_rec_data(c, f, accepted);

@@ -22,7 +22,10 @@
 /// that bound only guards against a dead plant: it runs from the plant's
 /// latest frame (heartbeats included), so a slow but live simulator never
 /// changes a decision; a dead one is stopped by heartbeat supervision
-/// (docs/safety.md H6) and, 5 s after its last frame, by the timeout.
+/// (docs/safety.md H6) and, 5 s after its last frame, by the timeout. A live
+/// plant whose answer got lost (heartbeats, but no answer frame for 30 s
+/// after the request or the last answer) times out too, so a lost frame on a
+/// socket bus never hangs the cycle.
 #ifndef MD_CYCLE_H
 #define MD_CYCLE_H
 
@@ -137,6 +140,7 @@ typedef struct {
     uint64_t wait_wall_us;      ///< MD_WAIT_WALL: platform time that ends the wait
     uint64_t timeout_wall_us;   ///< the current wait/answer ends here in platform time
     uint64_t plant_alive_us;    ///< platform time of the plant's latest frame (lockstep timeouts)
+    uint64_t answer_us;         ///< platform time of the latest request or answer frame (lockstep)
     uint8_t sim_token;          ///< SIM_STEP Token
     uint32_t cycles;            ///< cycles completed, all electrodes
 } md_cycle_t;

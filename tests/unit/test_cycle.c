@@ -355,9 +355,9 @@ static void test_tracker_parameter_selects_baseline(void)
 }
 
 /* Lockstep: a recording whose answer is slow (a loaded host, a slow VM) does
- * not time out while the plant's heartbeats keep arriving, whatever the
- * platform time; once the plant falls silent the answer timeout fires 5 s
- * after its last frame. */
+ * not time out while the plant keeps answering, whatever the platform time;
+ * once the plant falls silent the answer timeout fires 5 s after its last
+ * frame. */
 static void recording_request_unanswered(void)
 {
     boot();
@@ -368,16 +368,25 @@ static void recording_request_unanswered(void)
     TEST_ASSERT_TRUE(c->cycle.lockstep);
 }
 
+/* Heartbeats of all three plant nodes at P.now_us (+ a Hall reading: an answer frame). */
+static void plant_alive(bool answering)
+{
+    heartbeat(MD_CAN_HEARTBEAT_ACT_FRAME_ID, 0u);
+    heartbeat(MD_CAN_HEARTBEAT_HALL_FRAME_ID, 0u);
+    heartbeat(MD_CAN_HEARTBEAT_FE_FRAME_ID, MD_HB_FLAG_LOCKSTEP);
+    if (answering) {
+        send_hall(0u);
+    }
+}
+
 static void test_lockstep_timeout_waits_for_a_live_plant(void)
 {
     recording_request_unanswered();
     md_controller_t *c = md_controller_instance();
     const md_electrode_t *el = &c->cycle.el[0];
-    for (uint32_t k = 1u; k <= 600u; ++k) { /* 60 s of platform time, heartbeats every 100 ms */
+    for (uint32_t k = 1u; k <= 600u; ++k) { /* 60 s of platform time, frames every 100 ms */
         P.now_us = (uint64_t)k * 100000u;
-        heartbeat(MD_CAN_HEARTBEAT_ACT_FRAME_ID, 0u);
-        heartbeat(MD_CAN_HEARTBEAT_HALL_FRAME_ID, 0u);
-        heartbeat(MD_CAN_HEARTBEAT_FE_FRAME_ID, MD_HB_FLAG_LOCKSTEP);
+        plant_alive(true);
         md_controller_poll(c, P.now_us);
         P.n_out = 0u;
     }
@@ -389,6 +398,29 @@ static void test_lockstep_timeout_waits_for_a_live_plant(void)
     md_controller_poll(c, last + 4999999u); /* silent plant, not yet late */
     TEST_ASSERT_EQUAL_UINT32(0u, el->timeouts);
     md_controller_poll(c, last + 5000000u);
+    TEST_ASSERT_EQUAL_UINT32(1u, el->timeouts);
+    TEST_ASSERT_EQUAL_UINT32(1u, el->rec_failed);
+}
+
+/* Lockstep, a live plant (heartbeats) that never answers: a lost request or
+ * answer on a socket bus. The cycle gives up 30 s after the request instead
+ * of waiting for ever. */
+static void test_lockstep_lost_answer_times_out(void)
+{
+    recording_request_unanswered();
+    md_controller_t *c = md_controller_instance();
+    const md_electrode_t *el = &c->cycle.el[0];
+    for (uint32_t k = 1u; k < 300u; ++k) { /* heartbeats only, up to 29.9 s */
+        P.now_us = (uint64_t)k * 100000u;
+        plant_alive(false);
+        md_controller_poll(c, P.now_us);
+        P.n_out = 0u;
+    }
+    TEST_ASSERT_EQUAL_UINT32(0u, el->timeouts);
+    TEST_ASSERT_EQUAL_UINT64(30000000u, md_cycle_next_deadline_us(&c->cycle, &c->node));
+    P.now_us = 30000000u;
+    plant_alive(false);
+    md_controller_poll(c, P.now_us);
     TEST_ASSERT_EQUAL_UINT32(1u, el->timeouts);
     TEST_ASSERT_EQUAL_UINT32(1u, el->rec_failed);
 }
@@ -467,6 +499,7 @@ int main(void)
     RUN_TEST(test_cycles_move_safely_with_telemetry);
     RUN_TEST(test_tracker_parameter_selects_baseline);
     RUN_TEST(test_lockstep_timeout_waits_for_a_live_plant);
+    RUN_TEST(test_lockstep_lost_answer_times_out);
     RUN_TEST(test_realtime_timeout_is_platform_time);
     RUN_TEST(test_numeric_failure_keeps_state);
     RUN_TEST(test_estop_stops_the_cycle);
