@@ -6,7 +6,8 @@ little below what the full sweeps measured.
     test_session_regression.py BUILD_DIR SCENARIO_DIR OUT_DIR [--jobs J]
 
 Runs (in-process bus, one microdrive-session per seed, tools/session/evaluate.py):
-  * single_neuron, seeds 1-3, shortened to 600 s simulated (60 cycles);
+  * single_neuron, seeds 1-3, the scenario's full 1800 s (the final distance
+    is a property of the end of the session: the tissue relaxes for 30 min);
   * empty_tissue, seeds 1-2, 300 s (30 cycles).
 Checks:
   * single_neuron: every electrode isolated, no neuron damaged, median final
@@ -25,16 +26,17 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "tools", "session"))
 import evaluate  # noqa: E402  (tools/session/evaluate.py: run_one, summarise)
 
-# Bounds. The full sweeps (docs/session.md, commit cb11765) measured, for
-# single_neuron over 20 seeds of 1800 s, isolation 100 %, zero damage and a
-# median final distance of 10.0 um; empty_tissue never isolated. This subset
-# (seeds 1-3, 600 s) measured 4.3 / 4.5 / 11.0 um (median 4.5). The bound
-# leaves room for a few um of change, not for the old failure modes
-# (isolation on noise: 150-200 um; staying put while the tissue relaxes:
-# 30-60 um).
+# Bounds. The full sweeps (docs/session.md) measured, for single_neuron over
+# 20 seeds, isolation 100 %, zero damage and a median final distance of
+# 9.1 um; empty_tissue never isolated. Seeds 1-3 here measured 8.9 / 3.6 /
+# 8.8 um (median 8.8). Three seeds' median moves by several um with any
+# change of the tracker or the servo (13.0 / 13.0 / 19.0 on an earlier
+# commit), so the distance bound is the acceptance target itself (15 um):
+# it catches the old failure modes (isolation on noise: 150-200 um; staying
+# put while the tissue relaxes: 30-60 um), not a few um of drift.
 SINGLE_SEEDS = (1, 2, 3)
-SINGLE_DURATION_S = 600.0
-SINGLE_MEDIAN_DIST_MAX_UM = 10.0
+SINGLE_DURATION_S = None  # the scenario's duration_s
+SINGLE_MEDIAN_DIST_MAX_UM = 15.0
 EMPTY_SEEDS = (1, 2)
 EMPTY_DURATION_S = 300.0
 
