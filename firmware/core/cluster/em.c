@@ -114,6 +114,38 @@ typedef struct {
     double sum[EM_G_MAX][EM_D_MAX];
 } em_moments_t;
 
+/* One point of the E-step: z_i· from the log-weights, its moments; returns log p(y_i|Θ).
+ * Inline with a literal d = 2 below, so the d-loops unroll for the controller's case. */
+static inline double em_estep_point(const double *y, size_t d, double lf0, const double *log_pi,
+                                    const em_params_t *p, const em_cache_t *c, double *zi,
+                                    em_moments_t *mom)
+{
+    const size_t k = p->g + 1u;
+    zi[0] = log_pi[0] + lf0;
+    double hi = zi[0];
+    for (size_t g = 0u; g < p->g; ++g) {
+        /* eq. 3.1 */
+        zi[g + 1u] = log_pi[g + 1u] + c->log_norm[g] - 0.5 * em_quad_tri(c->linv[g], d, y, p->mean[g]);
+        hi = (zi[g + 1u] > hi) ? zi[g + 1u] : hi;
+    }
+    double sum = 0.0;
+    for (size_t g = 0u; g < k; ++g) {
+        zi[g] = exp(zi[g] - hi); /* the largest term is exactly 1: sum >= 1 */
+        sum += zi[g];
+    }
+    const double inv = 1.0 / sum;
+    zi[0] *= inv;
+    mom->n_soft[0] += zi[0];
+    for (size_t g = 1u; g < k; ++g) {
+        zi[g] *= inv;
+        mom->n_soft[g] += zi[g];
+        for (size_t j = 0u; j < d; ++j) {
+            mom->sum[g - 1u][j] += zi[g] * y[j];
+        }
+    }
+    return hi + log(sum);
+}
+
 static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
                        const em_cache_t *c, double *z, em_moments_t *mom)
 {
@@ -124,33 +156,13 @@ static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const
     for (size_t g = 0u; g < p->g; ++g) {
         log_pi[g + 1u] = em_safe_log(p->pi[g]);
     }
+    const bool tab = (outlier->tab_y == data->y) && (outlier->tab_n == data->n);
     double loglik = 0.0;
     for (size_t i = 0u; i < data->n; ++i) {
         const double *y = &data->y[i * data->d];
-        double *zi = &z[i * k];
-        zi[0] = log_pi[0] + em_outlier_logpdf_at(outlier, data, i);
-        double hi = zi[0];
-        for (size_t g = 0u; g < p->g; ++g) {
-            /* eq. 3.1 */
-            zi[g + 1u] = log_pi[g + 1u] + c->log_norm[g] - 0.5 * em_quad_tri(c->linv[g], data->d, y, p->mean[g]);
-            hi = (zi[g + 1u] > hi) ? zi[g + 1u] : hi;
-        }
-        double sum = 0.0;
-        for (size_t g = 0u; g < k; ++g) {
-            zi[g] = exp(zi[g] - hi); /* the largest term is exactly 1: sum >= 1 */
-            sum += zi[g];
-        }
-        const double inv = 1.0 / sum;
-        zi[0] *= inv;
-        mom->n_soft[0] += zi[0];
-        for (size_t g = 1u; g < k; ++g) {
-            zi[g] *= inv;
-            mom->n_soft[g] += zi[g];
-            for (size_t j = 0u; j < data->d; ++j) {
-                mom->sum[g - 1u][j] += zi[g] * y[j];
-            }
-        }
-        loglik += hi + log(sum);
+        const double lf0 = tab ? outlier->tab_log_f0[i] : em_outlier_logpdf(outlier, y);
+        loglik += (data->d == 2u) ? em_estep_point(y, 2u, lf0, log_pi, p, c, &z[i * k], mom)
+                                  : em_estep_point(y, data->d, lf0, log_pi, p, c, &z[i * k], mom);
     }
     return loglik;
 }
@@ -187,10 +199,9 @@ static md_status_t em_map_mean(const em_prior_t *prior, const double *sigma_inv,
 }
 
 /* W_g = Σ_i z_ig (y_i - μ_g)(y_i - μ_g)^T for one component. */
-static void em_scatter(const em_data_t *data, const double *z, size_t k, size_t col,
-                       const double *mean, double *w)
+static inline void em_scatter_d(const em_data_t *data, size_t d, const double *z, size_t k, size_t col,
+                                const double *mean, double *w)
 {
-    const size_t d = data->d;
     memset(w, 0, d * d * sizeof(double));
     for (size_t i = 0u; i < data->n; ++i) {
         const double zi = z[i * k + col];
@@ -209,6 +220,17 @@ static void em_scatter(const em_data_t *data, const double *z, size_t k, size_t 
         for (size_t b = a + 1u; b < d; ++b) {
             w[a * d + b] = w[b * d + a];
         }
+    }
+}
+
+/* W_g with a literal d = 2 for the controller's case (the loops unroll). */
+static void em_scatter(const em_data_t *data, const double *z, size_t k, size_t col, const double *mean,
+                       double *w)
+{
+    if (data->d == 2u) {
+        em_scatter_d(data, 2u, z, k, col, mean, w);
+    } else {
+        em_scatter_d(data, data->d, z, k, col, mean, w);
     }
 }
 
