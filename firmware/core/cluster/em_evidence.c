@@ -308,10 +308,9 @@ static double em_quad(const double *a, const double *r, size_t d)
     return q;
 }
 
-static void em_point_terms(const em_params_t *p, const em_comp_deriv_t *cd, const double *y,
-                           em_point_t *pt)
+static inline void em_point_terms(const em_params_t *p, size_t d, const em_comp_deriv_t *cd, const double *y,
+                                  em_point_t *pt)
 {
-    const size_t d = p->d;
     for (size_t g = 0u; g < p->g; ++g) {
         for (size_t j = 0u; j < d; ++j) {
             pt[g].r[j] = y[j] - p->mean[g][j];
@@ -347,10 +346,9 @@ static void em_sym_add(double *h, size_t eta, size_t a, size_t b, double v)
 }
 
 /* S_i = ∇∇P / P for one cluster (eq. B.18 last term and B.2.2), a = Φ/P, q = πΦ/P. */
-static void em_point_curvature(const em_params_t *p, const em_comp_deriv_t *cd,
-                               const em_point_t *pt, size_t g, double a, double q, double *h)
+static inline void em_point_curvature(const em_params_t *p, size_t d, const em_comp_deriv_t *cd,
+                                      const em_point_t *pt, size_t g, double a, double q, double *h)
 {
-    const size_t d = p->d;
     const size_t np = em_nc(d) + 1u;
     const size_t eta = em_param_count(d, p->g);
     const size_t ip = g * (1u + d + np - 1u);
@@ -380,17 +378,14 @@ static void em_point_curvature(const em_params_t *p, const em_comp_deriv_t *cd,
 }
 
 /* u = ∇ l_i (App. B.2.1 divided by P). Returns l_i = log P. */
-static double em_point_gradient(const em_params_t *p, const em_outlier_t *outlier,
-                                const double *y, const em_point_t *pt, double *u, double *a,
-                                double *q)
+static inline double em_point_gradient(const em_params_t *p, size_t d, double lf0, const double *log_pi,
+                                       const em_point_t *pt, double *u, double *a, double *q)
 {
-    const size_t d = p->d;
     const size_t np = em_nc(d) + 1u;
     const size_t eta = em_param_count(d, p->g);
-    const double lf0 = em_outlier_logpdf(outlier, y);
-    double lp = ((p->pi0 > 0.0) ? fmax(log(p->pi0), EM_LOG_TINY) : EM_LOG_TINY) + lf0;
+    double lp = log_pi[0] + lf0;
     for (size_t g = 0u; g < p->g; ++g) {
-        lp = em_logaddexp(lp, log(p->pi[g]) + pt[g].log_phi);
+        lp = em_logaddexp(lp, log_pi[g + 1u] + pt[g].log_phi);
     }
     const double b = exp(lf0 - lp);
     memset(u, 0, eta * sizeof(double));
@@ -475,6 +470,31 @@ static bool em_derivs_args_ok(const em_data_t *data, const em_outlier_t *outlier
            (outlier->d == p->d) && (prior->d == p->d) && (p->lambda > 0.0);
 }
 
+/* One point's l_i, its gradient u and its Hessian terms (eq. B.17, B.18), added to grad/hess.
+ * Inline with a literal d = 2 in the caller, so the d-loops unroll for the controller's case. */
+static inline double em_point_add(const em_params_t *p, size_t d, double lf0, const double *log_pi,
+                                  const double *y, double *grad, double *hess, em_evidence_work_t *ws)
+{
+    const size_t eta = em_param_count(d, p->g);
+    em_point_t pt[EM_G_MAX];
+    double a[EM_G_MAX];
+    double q[EM_G_MAX];
+    em_point_terms(p, d, ws->comp, y, pt);
+    const double li = em_point_gradient(p, d, lf0, log_pi, pt, ws->u, a, q);
+    for (size_t k = 0u; (grad != NULL) && (k < eta); ++k) {
+        grad[k] += ws->u[k];
+    }
+    for (size_t g = 0u; (hess != NULL) && (g < p->g); ++g) {
+        em_point_curvature(p, d, &ws->comp[g], &pt[g], g, a[g], q[g], hess);
+    }
+    for (size_t r = 0u; (hess != NULL) && (r < eta); ++r) {
+        for (size_t c = 0u; c < eta; ++c) {
+            hess[r * eta + c] -= ws->u[r] * ws->u[c]; /* eq. B.17 first term */
+        }
+    }
+    return li;
+}
+
 md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlier,
                                const em_prior_t *prior, const em_params_t *p, double *log_post,
                                double *grad, double *hess, em_evidence_work_t *ws)
@@ -494,25 +514,18 @@ md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlie
     if (hess != NULL) {
         memset(hess, 0, eta * eta * sizeof(double));
     }
+    double log_pi[EM_G_MAX + 1u]; /* per model, not per point */
+    log_pi[0] = (p->pi0 > 0.0) ? fmax(log(p->pi0), EM_LOG_TINY) : EM_LOG_TINY;
+    for (size_t g = 0u; g < p->g; ++g) {
+        log_pi[g + 1u] = log(p->pi[g]);
+    }
+    const bool tab = (outlier->tab_y == data->y) && (outlier->tab_n == data->n);
     double lp = 0.0;
     for (size_t i = 0u; i < data->n; ++i) {
         const double *y = &data->y[i * p->d];
-        em_point_t pt[EM_G_MAX];
-        double a[EM_G_MAX];
-        double q[EM_G_MAX];
-        em_point_terms(p, ws->comp, y, pt);
-        lp += em_point_gradient(p, outlier, y, pt, ws->u, a, q);
-        for (size_t k = 0u; (grad != NULL) && (k < eta); ++k) {
-            grad[k] += ws->u[k];
-        }
-        for (size_t g = 0u; (hess != NULL) && (g < p->g); ++g) {
-            em_point_curvature(p, &ws->comp[g], &pt[g], g, a[g], q[g], hess);
-        }
-        for (size_t r = 0u; (hess != NULL) && (r < eta); ++r) {
-            for (size_t c = 0u; c < eta; ++c) {
-                hess[r * eta + c] -= ws->u[r] * ws->u[c]; /* eq. B.17 first term */
-            }
-        }
+        const double lf0 = tab ? outlier->tab_log_f0[i] : em_outlier_logpdf(outlier, y);
+        lp += (p->d == 2u) ? em_point_add(p, 2u, lf0, log_pi, y, grad, hess, ws)
+                           : em_point_add(p, p->d, lf0, log_pi, y, grad, hess, ws);
     }
     lp += em_add_prior(prior, p, grad, hess);
     *log_post = lp;
