@@ -481,15 +481,19 @@ static inline double em_point_add(const em_params_t *p, size_t d, double lf0, co
     double q[EM_G_MAX];
     em_point_terms(p, d, ws->comp, y, pt);
     const double li = em_point_gradient(p, d, lf0, log_pi, pt, ws->u, a, q);
-    for (size_t k = 0u; (grad != NULL) && (k < eta); ++k) {
-        grad[k] += ws->u[k];
+    if (grad != NULL) {
+        for (size_t k = 0u; k < eta; ++k) {
+            grad[k] += ws->u[k];
+        }
     }
-    for (size_t g = 0u; (hess != NULL) && (g < p->g); ++g) {
-        em_point_curvature(p, d, &ws->comp[g], &pt[g], g, a[g], q[g], hess);
-    }
-    for (size_t r = 0u; (hess != NULL) && (r < eta); ++r) {
-        for (size_t c = 0u; c < eta; ++c) {
-            hess[r * eta + c] -= ws->u[r] * ws->u[c]; /* eq. B.17 first term */
+    if (hess != NULL) {
+        for (size_t g = 0u; g < p->g; ++g) {
+            em_point_curvature(p, d, &ws->comp[g], &pt[g], g, a[g], q[g], hess);
+        }
+        for (size_t r = 0u; r < eta; ++r) {
+            for (size_t c = 0u; c < eta; ++c) {
+                hess[r * eta + c] -= ws->u[r] * ws->u[c]; /* eq. B.17 first term */
+            }
         }
     }
     return li;
