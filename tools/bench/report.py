@@ -136,7 +136,7 @@ def main() -> int:
     w("| tolerance 1e-7 (MD_EM_TOL_REL) instead of 1e-6 + sharing/reuse (1e-6 cost closed-loop ID consistency, "
       "below) | 170,012,320 | 82,348,440 | 196,150,280 | 22 |")
     w("| **now: E-step point, scatter and evidence terms inlined with a literal d = 2 (bit-identical fits)** | "
-      "121,095,040 | 54,466,000 | 147,232,960 | 19 |")
+      "119,979,520 | 54,184,280 | 146,117,480 | 18 |")
     w("")
     w("Quality guard, MHTC (docs/tracking-eval.md, 5 scenarios; final-lineage ID consistency / spurious tracks, "
       "then online): seeds 1-3 before 0.741 / 15, 0.683 / 23; now 0.743 / 18, 0.671 / 25. Seeds 4-6 (held out) "
