@@ -455,6 +455,36 @@ static void test_other_dominant_is_adopted(void)
     }
 }
 
+/* Gradient Search that passed its neuron (the tracker reported it late, then
+ * under a new ID every interval, so no curve gets ready): once the dominant
+ * SNR stays below the drop fraction of the best SNR of this search for R
+ * cycles, turn round; R-1 such cycles change nothing. */
+static void test_gradient_search_turns_when_snr_falls(void)
+{
+    to_gradient_search(); /* entered at SNR 5 */
+    sfsm_input_t in = base();
+    in.suggestion.ready = false;
+    in.snr = 20.0;
+    run(&in, 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, sm.seek_best_snr);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.step_sample_um, out.step_um);
+    in.snr = 16.9; /* < 0.85 × 20 */
+    for (unsigned k = 0u; k + 1u < cfg.wait_r; ++k) {
+        in.dominant_track = (k % 2u == 0u) ? TRACK_B : TRACK_A; /* a new ID each time: identity-free */
+        run(&in, 1u);
+    }
+    in.snr = 17.1; /* breaks the WAIT */
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(1, sm.search_dir);
+    in.snr = 16.0;
+    run(&in, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
+    TEST_ASSERT_EQUAL_INT(-1, sm.search_dir);
+    TEST_ASSERT_EQUAL_UINT8(0u, sm.reversals); /* not an edge reversal */
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 16.0, sm.seek_best_snr);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -cfg.step_sample_um, out.step_um);
+}
+
 /* The 85 % rule reads the dominant SNR whatever its ID: a neuron split into
  * two alternating tracks still leaves Neuron Isolated when its SNR drops, and
  * its return restores isolation. */
@@ -784,6 +814,7 @@ int main(void)
     RUN_TEST(test_reisolate_exits);
     RUN_TEST(test_other_dominant_is_adopted);
     RUN_TEST(test_snr_drop_ignores_alternating_ids);
+    RUN_TEST(test_gradient_search_turns_when_snr_falls);
     RUN_TEST(test_omega3_isolates_from_any_state);
     RUN_TEST(test_losing_all_spikes);
     RUN_TEST(test_window_edges);

@@ -54,6 +54,7 @@ static const sfsm_row_t SFSM_TABLE[] = {
     {B(SFSM_REISOLATE_NEURON), SFSM_C_CONVERGED_ISOLATED, SFSM_W_R, SFSM_NEURON_ISOLATED, SFSM_A_DECLARE},
     {B(SFSM_REISOLATE_NEURON), SFSM_C_CURVE_NOT_READY, SFSM_W_NONE, SFSM_REESTIMATE_GRADIENT, SFSM_A_NONE},
     {B(SFSM_REISOLATE_NEURON), SFSM_C_IQM_LOW, SFSM_W_R, SFSM_REESTIMATE_GRADIENT, SFSM_A_NONE},
+    {B(SFSM_GRADIENT_SEARCH), SFSM_C_SNR_FALLING, SFSM_W_R, SFSM_GRADIENT_SEARCH, SFSM_A_TURN},
 };
 
 #define SFSM_ROWS (sizeof SFSM_TABLE / sizeof SFSM_TABLE[0])
@@ -65,7 +66,7 @@ static const sfsm_state_info_t SFSM_INFO[SFSM_STATE_COUNT] = {
                            "drop the isolation reference"},
     [SFSM_GRADIENT_SEARCH] = {"Gradient Search", "Isolate",
                               "search direction × Δsample (hold while no dominant track)",
-                              "drop the isolation reference"},
+                              "drop the isolation reference; best SNR := this SNR"},
     [SFSM_ISOLATE_NEURON] = {"Isolate Neuron", "Isolate",
                              "optimiser step (eq. 2.1; m*=2: ±Δmax; m*=1: Δsample); hold if converged, "
                              "if IQM < γ1 or no dominant track",
@@ -98,6 +99,7 @@ static const char *const SFSM_COND_DOC[SFSM_COND_COUNT] = {
     [SFSM_C_SNR_DROP] = "dominant SNR (any track) < drop fraction × isolation SNR",
     [SFSM_C_SNR_RESTORED] = "dominant SNR (any track) >= isolation SNR",
     [SFSM_C_OTHER_DOMINANT] = "another track is dominant",
+    [SFSM_C_SNR_FALLING] = "dominant SNR (any track) < drop fraction × best SNR since entry or turn",
 };
 
 static const char *const SFSM_ACTION_DOC[SFSM_ACTION_COUNT] = {
@@ -107,6 +109,7 @@ static const char *const SFSM_ACTION_DOC[SFSM_ACTION_COUNT] = {
     [SFSM_A_DECLARE] = "reference := dominant track, mean SNR of its last R cycles at this depth, depth",
     [SFSM_A_RESTORE] = "keep the original reference",
     [SFSM_A_ADOPT] = "reference track := dominant track (same reference SNR and depth)",
+    [SFSM_A_TURN] = "reverse the search direction (no edge reversal counted); best SNR := this SNR",
 };
 
 static const char *const SFSM_REASON_NAME[SFSM_REASON_COUNT] = {
@@ -255,6 +258,10 @@ static bool sfsm_cond_holds(const sfsm_t *sm, const sfsm_input_t *in, const sfsm
     case SFSM_C_SNR_DROP: return v && sm->has_ref && f->dom && (in->snr < k->snr_drop_frac * sm->ref_snr);
     case SFSM_C_SNR_RESTORED: return v && sm->has_ref && f->dom && (in->snr >= sm->ref_snr);
     case SFSM_C_OTHER_DOMINANT: return v && f->dom && !f->ours;
+    /* Identity-free like the 85 % rule: the tracker may give the neuron a new
+     * ID every interval, so no per-track curve gets ready while Gradient
+     * Search walks away from a neuron it has passed. */
+    case SFSM_C_SNR_FALLING: return v && f->dom && (in->snr < k->snr_drop_frac * sm->seek_best_snr);
     case SFSM_COND_COUNT: /* MISRA 16.4 default; -Wswitch-enum still checks every enumerator */
     default: return false;
     }
@@ -372,6 +379,10 @@ static void sfsm_do_action(sfsm_t *sm, const sfsm_input_t *in, sfsm_action_t a)
         sm->ref_depth_um = in->depth_um;
         break;
     case SFSM_A_ADOPT: sm->ref_track = in->dominant_track; break;
+    case SFSM_A_TURN:
+        sm->search_dir = (int8_t)-sm->search_dir;
+        sm->seek_best_snr = in->snr;
+        break;
     case SFSM_A_RESTORE:
     case SFSM_A_NONE:
     case SFSM_ACTION_COUNT: /* MISRA 16.4 default */
@@ -381,8 +392,11 @@ static void sfsm_do_action(sfsm_t *sm, const sfsm_input_t *in, sfsm_action_t a)
 
 /* Entry actions (SFSM_INFO[].entry). The reference exists only in the
  * isolated modes (Neuron Isolated, Re-Estimate Gradient, Re-Isolate Neuron). */
-static void sfsm_enter(sfsm_t *sm, sfsm_state_t to, sfsm_output_t *out)
+static void sfsm_enter(sfsm_t *sm, const sfsm_input_t *in, bool dom, sfsm_state_t to, sfsm_output_t *out)
 {
+    if (to == SFSM_GRADIENT_SEARCH) {
+        sm->seek_best_snr = dom ? in->snr : 0.0; /* the SNR that started the search counts */
+    }
     const bool isolated_mode = (to == SFSM_NEURON_ISOLATED) || (to == SFSM_REESTIMATE_GRADIENT) ||
                                (to == SFSM_REISOLATE_NEURON);
     if (!isolated_mode) {
@@ -437,6 +451,9 @@ md_status_t sfsm_step(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out)
         sm->bad_inputs++;
     } else if (f.dom) {
         sfsm_note_snr(sm, in);
+        if ((sm->state == SFSM_GRADIENT_SEARCH) && (in->snr > sm->seek_best_snr)) {
+            sm->seek_best_snr = in->snr;
+        }
     }
     sfsm_reason_t why = SFSM_R_HALTED;
     const double nominal = sfsm_policy(sm, in, &f, &why);
@@ -448,7 +465,7 @@ md_status_t sfsm_step(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out)
         sfsm_do_action(sm, in, r->action);
         if (r->to != sm->state) {
             sm->state = r->to;
-            sfsm_enter(sm, r->to, out);
+            sfsm_enter(sm, in, f.dom, r->to, out);
         }
         (void)memset(sm->wait, 0, sizeof sm->wait);
         sm->transitions++;

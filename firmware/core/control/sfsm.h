@@ -60,6 +60,7 @@ typedef enum {
     SFSM_C_SNR_DROP,            ///< dominant SNR (any track) < drop fraction × the isolation SNR
     SFSM_C_SNR_RESTORED,        ///< dominant SNR (any track) >= the isolation SNR
     SFSM_C_OTHER_DOMINANT,      ///< the dominant track is not the isolated one
+    SFSM_C_SNR_FALLING,         ///< dominant SNR < drop fraction × the best SNR of this Gradient Search
     SFSM_COND_COUNT
 } sfsm_cond_t;
 
@@ -78,6 +79,7 @@ typedef enum {
     SFSM_A_DECLARE,   ///< isolation reference := dominant track, its recent mean SNR here, depth
     SFSM_A_RESTORE,   ///< keep the original isolation reference
     SFSM_A_ADOPT,     ///< reference track := dominant track; reference SNR and depth kept
+    SFSM_A_TURN,      ///< reverse the search direction (not a window-edge reversal), best SNR := now
     SFSM_ACTION_COUNT
 } sfsm_action_t;
 
@@ -180,6 +182,7 @@ typedef struct {
     uint32_t cycles;
     uint32_t transitions;
     uint32_t bad_inputs;             ///< cycles rejected by input validation
+    double seek_best_snr;            ///< best dominant SNR since Gradient Search was entered / turned
 } sfsm_t;
 
 /// Documented defaults.
