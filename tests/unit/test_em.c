@@ -245,6 +245,117 @@ static void test_far_target_and_failed_fit_leave_no_nan(void)
     }
 }
 
+/* Three overlapping unit-variance clusters (centres 2.6-2.8 sd apart) and 20
+ * outliers: EM's linear convergence is slow here (~90 steps at the default
+ * tolerance), the case the accelerator is for. */
+static size_t make_overlap(uint64_t s)
+{
+    md_rng_t rng;
+    md_rng_seed(&rng, s);
+    size_t k = 0u;
+    for (; k < 260u; ++k) {
+        const uint8_t c = (uint8_t)(k % 3u);
+        const double cx = (c == 0u) ? 0.0 : ((c == 1u) ? 2.8 : 1.4);
+        const double cy = (c == 2u) ? 2.24 : 0.0;
+        pts[2u * k] = cx + md_rng_gauss(&rng);
+        pts[2u * k + 1u] = cy + md_rng_gauss(&rng);
+        seed[k] = c;
+    }
+    for (; k < 280u; ++k) {
+        pts[2u * k] = -12.0 + 24.0 * md_rng_uniform(&rng);
+        pts[2u * k + 1u] = -12.0 + 24.0 * md_rng_uniform(&rng);
+        seed[k] = (uint8_t)(k % 3u);
+    }
+    return k;
+}
+
+static void fit_with(const setup_t *s, size_t g, bool accelerate, double tol, uint32_t max_iter, em_fit_t *fit)
+{
+    em_options_t opt;
+    em_options_default(&opt);
+    opt.accelerate = accelerate;
+    opt.tol = tol;
+    opt.max_iter = max_iter;
+    const md_status_t st = em_fit(&s->data, &s->outlier, &s->prior, seed, g, &opt, z, fit);
+    TEST_ASSERT_TRUE((st == MD_OK) || (st == MD_E_NOCONVERGE));
+}
+
+static void assert_same_fit(const em_fit_t *a, const em_fit_t *b, double tol_mean)
+{
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9 * fabs(a->log_post), a->log_post, b->log_post);
+    for (size_t g = 0u; g < a->params.g; ++g) {
+        TEST_ASSERT_DOUBLE_WITHIN(tol_mean, a->params.mean[g][0], b->params.mean[g][0]);
+        TEST_ASSERT_DOUBLE_WITHIN(tol_mean, a->params.mean[g][1], b->params.mean[g][1]);
+        TEST_ASSERT_DOUBLE_WITHIN(tol_mean, a->params.pi[g], b->params.pi[g]);
+    }
+    TEST_ASSERT_DOUBLE_WITHIN(tol_mean, a->params.lambda, b->params.lambda);
+}
+
+/* SQUAREM keeps EM's fixed point: the known-answer fits (no prior; one
+ * target prior) end where plain EM ends, at a tight tolerance. */
+static void test_squarem_same_optimum_as_plain_em(void)
+{
+    setup_t s;
+    em_fit_t plain;
+    em_fit_t fast;
+    prepare(make_two(1u), NULL, 0u, &s);
+    fit_with(&s, 2u, false, 1e-13, MD_EM_MAX_ITER, &plain);
+    fit_with(&s, 2u, true, 1e-13, MD_EM_MAX_ITER, &fast);
+    assert_same_fit(&plain, &fast, 1e-5);
+    em_target_t tg;
+    memset(&tg, 0, sizeof tg);
+    tg.mean[0] = -3.5;
+    tg.mean[1] = 3.2;
+    tg.s_cov[0] = tg.s_cov[3] = 0.05;
+    tg.cluster_cov[0] = tg.cluster_cov[3] = 1.0;
+    tg.p_detect = 0.9;
+    prepare(make_two(2u), &tg, 1u, &s);
+    fit_with(&s, 2u, false, 1e-13, MD_EM_MAX_ITER, &plain);
+    fit_with(&s, 2u, true, 1e-13, MD_EM_MAX_ITER, &fast);
+    assert_same_fit(&plain, &fast, 1e-5);
+    /* at the default tolerance both stop within it of the same log-posterior */
+    fit_with(&s, 2u, false, MD_EM_TOL_REL, MD_EM_MAX_ITER, &plain);
+    fit_with(&s, 2u, true, MD_EM_TOL_REL, MD_EM_MAX_ITER, &fast);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-5 * fabs(plain.log_post), plain.log_post, fast.log_post);
+}
+
+/* Overlapping clusters, G = 3: the same optimum in several times fewer EM
+ * steps (fails without the accelerator: plain EM's count is the reference). */
+static void test_squarem_fewer_iterations_on_overlap(void)
+{
+    setup_t s;
+    em_fit_t plain;
+    em_fit_t fast;
+    em_fit_t ref;
+    prepare(make_overlap(4u), NULL, 0u, &s);
+    fit_with(&s, 3u, false, MD_EM_TOL_REL, MD_EM_MAX_ITER, &plain);
+    fit_with(&s, 3u, true, MD_EM_TOL_REL, MD_EM_MAX_ITER, &fast);
+    fit_with(&s, 3u, false, 1e-14, MD_EM_MAX_ITER, &ref);
+    TEST_ASSERT_EQUAL_INT(MD_OK, plain.status);
+    TEST_ASSERT_EQUAL_INT(MD_OK, fast.status);
+    TEST_ASSERT_GREATER_THAN_UINT(60u, plain.iterations);
+    TEST_ASSERT_LESS_THAN_UINT(plain.iterations / 2u, fast.iterations);
+    /* the accelerated fit is at least as close to the optimum as plain EM */
+    TEST_ASSERT_TRUE(fast.log_post >= plain.log_post - 1e-9 * fabs(plain.log_post));
+    TEST_ASSERT_TRUE(ref.log_post >= fast.log_post - 1e-9 * fabs(ref.log_post));
+}
+
+/* MAP-EM is monotone and SQUAREM keeps it so: the log-posterior after k
+ * EM steps (an accepted extrapolation counts inside them) never decreases in k. */
+static void test_squarem_log_post_monotone(void)
+{
+    setup_t s;
+    em_fit_t fit;
+    prepare(make_overlap(3u), NULL, 0u, &s);
+    double prev = -INFINITY;
+    for (uint32_t k = 1u; k <= 30u; ++k) {
+        fit_with(&s, 3u, true, 1e-15, k, &fit);
+        TEST_ASSERT_TRUE(isfinite(fit.log_post));
+        TEST_ASSERT_TRUE(fit.log_post >= prev - 1e-10 * fabs(fit.log_post));
+        prev = fit.log_post;
+    }
+}
+
 static void test_labels_argmax(void)
 {
     const double zz[6] = {0.1, 0.7, 0.2, 0.6, 0.3, 0.1};
@@ -262,6 +373,9 @@ int main(void)
     RUN_TEST(test_map_mean_obeys_eq_3_15);
     RUN_TEST(test_degenerate_and_bad_inputs);
     RUN_TEST(test_far_target_and_failed_fit_leave_no_nan);
+    RUN_TEST(test_squarem_same_optimum_as_plain_em);
+    RUN_TEST(test_squarem_fewer_iterations_on_overlap);
+    RUN_TEST(test_squarem_log_post_monotone);
     RUN_TEST(test_labels_argmax);
     return UNITY_END();
 }

@@ -60,6 +60,7 @@ void em_options_default(em_options_t *opt)
     if (opt != NULL) {
         opt->max_iter = MD_EM_MAX_ITER;
         opt->tol = MD_EM_TOL_REL;
+        opt->accelerate = true;
     }
 }
 
@@ -380,6 +381,211 @@ static md_status_t em_finish(const em_moments_t *mom, bool converged, em_fit_t *
     return converged ? em_fail(out, MD_OK, EM_OK) : em_fail(out, MD_E_NOCONVERGE, EM_FAIL_NOCONVERGE);
 }
 
+/* ---- SQUAREM (Varadhan & Roland 2008, scheme S3) ---------------------------
+ * EM converges linearly, slowly when components overlap. Two EM steps from
+ * θ0 give r = θ1 - θ0 and v = θ2 - 2θ1 + θ0; the extrapolation
+ * θ' = θ0 - 2αr + α²v, α = -|r|/|v|, is kept only if its log-posterior is not
+ * below that of θ2 (MAP-EM's monotonicity), else EM goes on from θ2. Every
+ * fit still ends on plain EM steps that meet the tolerance, so the fixed
+ * point is that of eq. 3.13-3.15. The vector holds the means, the Cholesky
+ * factors of Σ_g (log diagonal: they stay SPD) and log π_g: linear
+ * extrapolation keeps the shared volume (equal log det Σ_g) to rounding. */
+#define EM_SQ_TRI (EM_D_MAX * (EM_D_MAX + 1u) / 2u)
+#define EM_SQ_VEC_MAX (EM_G_MAX * (EM_D_MAX + EM_SQ_TRI) + EM_G_MAX + 1u)
+#define EM_SQ_ALPHA_MAX 64.0 /* bound on |α|: θ' stays in reach of the data */
+
+static bool em_sq_pack(const em_params_t *p, double *v, size_t *len)
+{
+    const size_t d = p->d;
+    size_t k = 0u;
+    for (size_t g = 0u; g < p->g; ++g) {
+        double l[EM_D_MAX * EM_D_MAX];
+        for (size_t e = 0u; e < d * d; ++e) {
+            l[e] = p->lambda * p->shape[g][e];
+        }
+        if (linalg_cholesky(l, d) != MD_OK) {
+            return false;
+        }
+        for (size_t a = 0u; a < d; ++a) {
+            v[k++] = p->mean[g][a];
+            for (size_t b = 0u; b < a; ++b) {
+                v[k++] = l[a * d + b];
+            }
+            v[k++] = log(l[a * d + a]);
+        }
+        v[k++] = em_safe_log(p->pi[g]);
+    }
+    v[k++] = em_safe_log(p->pi0);
+    *len = k;
+    return true;
+}
+
+/* Θ from a packed vector: Σ_g = L L^T, λ the geometric mean of |Σ_g|^{1/d}, π normalised. */
+static bool em_sq_unpack(const double *v, em_params_t *p)
+{
+    const size_t d = p->d;
+    const size_t stride = d + (d * (d + 1u)) / 2u + 1u;
+    const double lw0 = v[p->g * stride];
+    double hi = lw0;
+    double log_lambda = 0.0;
+    for (size_t g = 0u; g < p->g; ++g) {
+        const double *q = &v[g * stride];
+        double l[EM_D_MAX * EM_D_MAX] = {0.0};
+        double logdet = 0.0;
+        size_t k = 0u;
+        for (size_t a = 0u; a < d; ++a) {
+            p->mean[g][a] = q[k++];
+            for (size_t b = 0u; b < a; ++b) {
+                l[a * d + b] = q[k++];
+            }
+            logdet += 2.0 * q[k];
+            l[a * d + a] = exp(q[k++]);
+        }
+        hi = fmax(hi, q[k]);
+        const double root = exp(logdet / (double)d); /* |Σ_g|^{1/d} */
+        for (size_t a = 0u; a < d; ++a) {
+            for (size_t b = 0u; b < d; ++b) {
+                double s = 0.0;
+                for (size_t c = 0u; (c <= a) && (c <= b); ++c) {
+                    s += l[a * d + c] * l[b * d + c];
+                }
+                p->shape[g][a * d + b] = s / root; /* det C_g = 1 */
+            }
+        }
+        log_lambda += logdet / (double)d;
+    }
+    p->lambda = exp(log_lambda / (double)p->g);
+    double sum = exp(lw0 - hi);
+    for (size_t g = 0u; g < p->g; ++g) {
+        sum += exp(v[g * stride + stride - 1u] - hi);
+    }
+    p->pi0 = exp(lw0 - hi) / sum;
+    for (size_t g = 0u; g < p->g; ++g) {
+        p->pi[g] = exp(v[g * stride + stride - 1u] - hi) / sum;
+    }
+    return (p->lambda > 0.0) && isfinite(p->lambda) &&
+           linalg_all_finite(&p->mean[0][0], sizeof p->mean / sizeof p->mean[0][0]) &&
+           linalg_all_finite(&p->shape[0][0], sizeof p->shape / sizeof p->shape[0][0]);
+}
+
+/* θ' of scheme S3 into t0 (which holds θ0); r holds θ1 - θ0; t2 is θ2. False when there is no step. */
+static bool em_sq_extrapolate(double *t0, const double *r, const double *t2, size_t len)
+{
+    double rr = 0.0;
+    double vv = 0.0;
+    for (size_t k = 0u; k < len; ++k) {
+        const double v = t2[k] - t0[k] - 2.0 * r[k]; /* θ2 - 2θ1 + θ0 */
+        rr += r[k] * r[k];
+        vv += v * v;
+    }
+    if (!(vv > 0.0) || !isfinite(rr) || !isfinite(vv)) {
+        return false;
+    }
+    const double alpha = -fmin(sqrt(rr / vv), EM_SQ_ALPHA_MAX);
+    if (!(alpha < -1.0)) {
+        return false; /* α = -1 is θ2 itself */
+    }
+    for (size_t k = 0u; k < len; ++k) {
+        const double v = t2[k] - t0[k] - 2.0 * r[k];
+        t0[k] = t0[k] - 2.0 * alpha * r[k] + alpha * alpha * v;
+    }
+    return true;
+}
+
+/* Cache, E-step and log-posterior of eq. 3.4 at p; false if Σ_g is not SPD or a figure is not finite. */
+static bool em_evaluate(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                        const em_params_t *p, em_cache_t *cache, double *z, em_moments_t *mom,
+                        em_fit_t *out)
+{
+    if (em_build_cache(p, cache) != MD_OK) {
+        return false;
+    }
+    out->log_lik = em_estep(data, outlier, p, cache, z, mom);
+    out->log_post = em_log_post(prior, p, out->log_lik, out->zeta);
+    return isfinite(out->log_post);
+}
+
+/* Every Gaussian keeps the soft count the next M-step needs. */
+static bool em_counts_ok(const em_moments_t *mom, size_t g, size_t d)
+{
+    for (size_t c = 1u; c <= g; ++c) {
+        if (mom->n_soft[c] < EM_MIN_POINTS_PER_CLUSTER(d)) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/* State of one fit: the current Θ lives in out->params, its E-step in z/mom/out. */
+typedef struct {
+    em_cache_t cache;
+    em_moments_t mom;
+    double t0[EM_SQ_VEC_MAX]; /* θ0, then θ' */
+    double r[EM_SQ_VEC_MAX];  /* θ1 - θ0 */
+    double t2[EM_SQ_VEC_MAX]; /* θ2 */
+    em_params_t p2;           /* θ2 exactly, to go on from if θ' is rejected */
+    uint32_t it;              /* M-steps taken */
+    bool converged;
+} em_run_t;
+
+/* One M-step and the E-step at the new Θ; false ends the fit (converged, bound, failure in *r). */
+static bool em_plain_step(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                          const em_options_t *opt, double *z, em_run_t *s, em_fit_t *out,
+                          em_reason_t *r)
+{
+    const double lp_prev = out->log_post;
+    *r = em_mstep(data, prior, z, &s->mom, &s->cache, out->zeta, &out->params);
+    if (*r != EM_OK) {
+        return false;
+    }
+    s->it += 1u;
+    out->iterations = s->it;
+    if (!em_evaluate(data, outlier, prior, &out->params, &s->cache, z, &s->mom, out)) {
+        *r = EM_FAIL_NUMERIC;
+        return false;
+    }
+    s->converged = fabs(out->log_post - lp_prev) <= opt->tol * fmax(1.0, fabs(out->log_post));
+    return !s->converged && (s->it < opt->max_iter);
+}
+
+/* Two EM steps and one S3 extrapolation, kept only if the log-posterior did not decrease. */
+static bool em_squarem_cycle(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                             const em_options_t *opt, double *z, em_run_t *s, em_fit_t *out,
+                             em_reason_t *r)
+{
+    size_t len = 0u;
+    const bool packed0 = em_sq_pack(&out->params, s->t0, &len);
+    if (!em_plain_step(data, outlier, prior, opt, z, s, out, r)) {
+        return false;
+    }
+    const bool packed1 = packed0 && em_sq_pack(&out->params, s->r, &len);
+    if (!em_plain_step(data, outlier, prior, opt, z, s, out, r)) {
+        return false;
+    }
+    if (!packed1 || !em_sq_pack(&out->params, s->t2, &len)) {
+        return true;
+    }
+    for (size_t k = 0u; k < len; ++k) {
+        s->r[k] -= s->t0[k];
+    }
+    if (!em_sq_extrapolate(s->t0, s->r, s->t2, len)) {
+        return true;
+    }
+    const double lp2 = out->log_post;
+    s->p2 = out->params;
+    if (em_sq_unpack(s->t0, &out->params) &&
+        em_evaluate(data, outlier, prior, &out->params, &s->cache, z, &s->mom, out) &&
+        (out->log_post >= lp2) && em_counts_ok(&s->mom, out->params.g, data->d)) {
+        return true;
+    }
+    out->params = s->p2; /* rejected: EM goes on from θ2 */
+    if (!em_evaluate(data, outlier, prior, &out->params, &s->cache, z, &s->mom, out)) {
+        *r = EM_FAIL_NUMERIC;
+        return false;
+    }
+    return true;
+}
+
 md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
                    const uint8_t *seed_labels, size_t g, const em_options_t *opt, double *z,
                    em_fit_t *out)
@@ -394,27 +600,19 @@ md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_
     if ((double)data->n < (double)g * EM_MIN_POINTS_PER_CLUSTER(data->d)) {
         return em_fail(out, MD_E_DEGENERATE, EM_FAIL_TOO_FEW_POINTS);
     }
+    em_run_t s;
+    memset(&s, 0, sizeof s);
     em_reason_t r = em_init_params(data, seed_labels, g, &out->params);
-    em_cache_t cache;
-    em_moments_t mom;
-    memset(&mom, 0, sizeof mom);
-    double lp_prev = 0.0;
-    bool converged = false;
-    for (uint32_t it = 0u; (r == EM_OK) && (it <= opt->max_iter); ++it) {
-        if (em_build_cache(&out->params, &cache) != MD_OK) {
-            r = EM_FAIL_NUMERIC;
+    if ((r == EM_OK) && !em_evaluate(data, outlier, prior, &out->params, &s.cache, z, &s.mom, out)) {
+        r = EM_FAIL_NUMERIC;
+    }
+    /* Each cycle takes at least one M-step, so max_iter cycles bound the fit. */
+    for (uint32_t cyc = 0u; (r == EM_OK) && (cyc < opt->max_iter); ++cyc) {
+        const bool more = opt->accelerate ? em_squarem_cycle(data, outlier, prior, opt, z, &s, out, &r)
+                                          : em_plain_step(data, outlier, prior, opt, z, &s, out, &r);
+        if (!more) {
             break;
         }
-        out->log_lik = em_estep(data, outlier, &out->params, &cache, z, &mom);
-        out->log_post = em_log_post(prior, &out->params, out->log_lik, out->zeta);
-        converged = (it > 0u) && (fabs(out->log_post - lp_prev) <=
-                                  opt->tol * fmax(1.0, fabs(out->log_post)));
-        if (converged || (it == opt->max_iter) || !isfinite(out->log_post)) {
-            break;
-        }
-        lp_prev = out->log_post;
-        r = em_mstep(data, prior, z, &mom, &cache, out->zeta, &out->params);
-        out->iterations = it + 1u;
     }
     if (r != EM_OK) {
         const md_status_t st = (r == EM_FAIL_NUMERIC) ? MD_E_NUMERIC
@@ -422,7 +620,7 @@ md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_
                                                       : MD_E_DEGENERATE;
         return em_fail(out, st, r);
     }
-    return em_finish(&mom, converged, out);
+    return em_finish(&s.mom, s.converged, out);
 }
 
 void em_labels(const double *z, size_t n, size_t g, uint8_t *label)

@@ -27,9 +27,11 @@
 typedef struct {
     uint32_t max_iter; ///< 1..MD_EM_MAX_ITER
     double tol;        ///< stop when |Δ log-posterior| ≤ tol · max(1, |log-posterior|)
+    bool accelerate;   ///< SQUAREM extrapolation between EM steps (same fixed point, fewer iterations)
 } em_options_t;
 
-/// Defaults: max_iter = MD_EM_MAX_ITER, tol = MD_EM_TOL_REL (md_config.h).
+/// Defaults: max_iter = MD_EM_MAX_ITER, tol = MD_EM_TOL_REL (md_config.h),
+/// accelerate = true.
 void em_options_default(em_options_t *opt);
 
 /// Result of one fit of one model class.
