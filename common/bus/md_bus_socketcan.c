@@ -17,6 +17,15 @@
 #include "md_bus.h"
 #include "md_bus_internal.h"
 
+#ifndef SO_RCVBUFFORCE
+#define SO_RCVBUFFORCE 33 /* Linux; glibc hides it outside _GNU_SOURCE */
+#endif
+
+/* Receive buffer asked for: a 10 s recording streams ~10 000 CAN FD frames
+ * in a burst, and each one costs about 1 kB of kernel memory (skb truesize);
+ * the default (~200 frames) overflows whenever the reader is briefly late. */
+#define CAN_RCVBUF_BYTES (16 * 1024 * 1024)
+
 _Static_assert(MD_FRAME_MAX_DATA == CANFD_MAX_DLEN, "md_frame_t must carry a full CAN FD payload");
 _Static_assert(MD_FRAME_EXT_ID_MAX == CAN_EFF_MASK && MD_FRAME_STD_ID_MAX == CAN_SFF_MASK,
                "identifier ranges must match SocketCAN's");
@@ -157,6 +166,13 @@ static int configure(int fd, int ifindex, const char **what)
     if (setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) != 0) {
         *what = "SO_RXQ_OVFL";
         return -errno;
+    }
+    // Best effort: FORCE passes rmem_max but needs CAP_NET_ADMIN; without
+    // it the kernel caps SO_RCVBUF at rmem_max. Drops stay visible either
+    // way (SO_RXQ_OVFL -> md_bus_stats_t.rx_overflow).
+    const int rcvbuf = CAN_RCVBUF_BYTES;
+    if (setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &rcvbuf, sizeof rcvbuf) != 0) {
+        (void)setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
     }
     struct sockaddr_can addr;
     memset(&addr, 0, sizeof addr);
