@@ -297,7 +297,7 @@ static md_status_t em_comp_prepare(const em_params_t *p, size_t g, em_comp_deriv
     return MD_OK;
 }
 
-static double em_quad(const double *a, const double *r, size_t d)
+static inline double em_quad(const double *a, const double *r, size_t d)
 {
     double q = 0.0;
     for (size_t i = 0u; i < d; ++i) {
@@ -345,7 +345,9 @@ static void em_sym_add(double *h, size_t eta, size_t a, size_t b, double v)
     }
 }
 
-/* S_i = ∇∇P / P for one cluster (eq. B.18 last term and B.2.2), a = Φ/P, q = πΦ/P. */
+/* S_i = ∇∇P / P for one cluster (eq. B.18 last term and B.2.2), a = Φ/P, q = πΦ/P.
+ * Only the upper triangle of H is meant (the symmetric blocks are summed for
+ * column ≥ row; em_log_post_derivs mirrors it once after the point loop). */
 static inline void em_point_curvature(const em_params_t *p, size_t d, const em_comp_deriv_t *cd,
                                       const em_point_t *pt, size_t g, double a, double q, double *h)
 {
@@ -354,7 +356,7 @@ static inline void em_point_curvature(const em_params_t *p, size_t d, const em_c
     const size_t ip = g * (1u + d + np - 1u);
     for (size_t j = 0u; j < d; ++j) {
         em_sym_add(h, eta, ip, ip + 1u + j, a * pt->sr[j]);             /* means – weights */
-        for (size_t k = 0u; k < d; ++k) {                                /* means – means */
+        for (size_t k = j; k < d; ++k) {                                 /* means – means (upper) */
             h[(ip + 1u + j) * eta + ip + 1u + k] +=
                 q * (pt->sr[j] * pt->sr[k] - cd->sigma_inv[j * d + k]);
         }
@@ -370,7 +372,7 @@ static inline void em_point_curvature(const em_params_t *p, size_t d, const em_c
     for (size_t t = 0u; t < np; ++t) {
         const size_t it = em_cov_index(d, p->g, g, t);
         em_sym_add(h, eta, ip, it, a * pt->dt[t]);                       /* (co)variances, volume – weights */
-        for (size_t s = 0u; s < np; ++s) {                               /* (co)variances, volume pairs */
+        for (size_t s = t; s < np; ++s) {                               /* (co)variances, volume pairs (upper) */
             h[it * eta + em_cov_index(d, p->g, g, s)] +=
                 q * (pt->dt[t] * pt->dt[s] + cd->k_ts[t][s] + em_quad(cd->q_ts[t][s], pt->r, d));
         }
@@ -383,15 +385,26 @@ static inline double em_point_gradient(const em_params_t *p, size_t d, double lf
 {
     const size_t np = em_nc(d) + 1u;
     const size_t eta = em_param_count(d, p->g);
-    double lp = log_pi[0] + lf0;
+    /* One log-sum-exp about the largest term: G + 1 exp and one log per point;
+     * Φ_g/P = w_g / (s π_g) with π_g > 0 (checked by em_log_post_derivs). */
+    double w[EM_G_MAX + 1u];
+    w[0] = log_pi[0] + lf0;
+    double hi = w[0];
     for (size_t g = 0u; g < p->g; ++g) {
-        lp = em_logaddexp(lp, log_pi[g + 1u] + pt[g].log_phi);
+        w[g + 1u] = log_pi[g + 1u] + pt[g].log_phi;
+        hi = (w[g + 1u] > hi) ? w[g + 1u] : hi;
     }
-    const double b = exp(lf0 - lp);
+    double sum = 0.0;
+    for (size_t g = 0u; g <= p->g; ++g) {
+        w[g] = exp(w[g] - hi); /* the largest is exactly 1: sum >= 1 */
+        sum += w[g];
+    }
+    const double lp = hi + log(sum);
+    const double b = exp(lf0 - lp); /* f0/P; π_0 may be 0, so not from w_0 */
     memset(u, 0, eta * sizeof(double));
     for (size_t g = 0u; g < p->g; ++g) {
         const size_t ip = g * (1u + d + np - 1u);
-        a[g] = exp(pt[g].log_phi - lp);
+        a[g] = w[g + 1u] / (sum * p->pi[g]);
         q[g] = p->pi[g] * a[g];
         u[ip] = a[g] - b;
         for (size_t j = 0u; j < d; ++j) {
@@ -490,9 +503,10 @@ static inline double em_point_add(const em_params_t *p, size_t d, double lf0, co
         for (size_t g = 0u; g < p->g; ++g) {
             em_point_curvature(p, d, &ws->comp[g], &pt[g], g, a[g], q[g], hess);
         }
-        for (size_t r = 0u; r < eta; ++r) {
-            for (size_t c = 0u; c < eta; ++c) {
-                hess[r * eta + c] -= ws->u[r] * ws->u[c]; /* eq. B.17 first term */
+        for (size_t r = 0u; r < eta; ++r) { /* upper triangle; em_log_post_derivs mirrors it */
+            const double ur = ws->u[r];
+            for (size_t c = r; c < eta; ++c) {
+                hess[r * eta + c] -= ur * ws->u[c]; /* eq. B.17 first term */
             }
         }
     }
@@ -530,6 +544,13 @@ md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlie
         const double lf0 = tab ? outlier->tab_log_f0[i] : em_outlier_logpdf(outlier, y);
         lp += (p->d == 2u) ? em_point_add(p, 2u, lf0, log_pi, y, grad, hess, ws)
                            : em_point_add(p, p->d, lf0, log_pi, y, grad, hess, ws);
+    }
+    if (hess != NULL) { /* the per-point terms are symmetric: the lower triangle is the upper one */
+        for (size_t r = 1u; r < eta; ++r) {
+            for (size_t c = 0u; c < r; ++c) {
+                hess[r * eta + c] = hess[c * eta + r];
+            }
+        }
     }
     lp += em_add_prior(prior, p, grad, hess);
     *log_post = lp;
