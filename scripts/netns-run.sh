@@ -19,7 +19,15 @@ for tool in unshare ip; do
         exit 125
     fi
 done
-if ! unshare -rn true 2>/dev/null; then
+# Real root keeps its capabilities with a plain -n (no new user namespace):
+# the kernel honours SO_RCVBUFFORCE only for CAP_NET_ADMIN in the initial
+# user namespace, and the bus endpoints need large receive buffers to ride
+# out a recording's frame burst (docs/bus.md). Anyone else gets -rn.
+ns_flags=-rn
+if [ "$(id -u)" -eq 0 ] && unshare -n true 2>/dev/null; then
+    ns_flags=-n
+fi
+if ! unshare $ns_flags true 2>/dev/null; then
     echo "netns-run: cannot create a network namespace (unshare -rn failed): run as root," >&2
     echo "netns-run: or allow unprivileged user namespaces (kernel.unprivileged_userns_clone=1," >&2
     echo "netns-run: kernel.apparmor_restrict_unprivileged_userns=0 on Ubuntu >= 23.10)" >&2
@@ -27,7 +35,7 @@ if ! unshare -rn true 2>/dev/null; then
 fi
 # -r maps the caller to root inside, so this also works for a non-root user
 # where user namespaces are allowed; -n gives the new network namespace.
-exec unshare -rn sh -c '
+exec unshare $ns_flags sh -c '
     ip link set lo up || { echo "netns-run: cannot bring lo up" >&2; exit 125; }
     ip route add 224.0.0.0/4 dev lo || { echo "netns-run: cannot add multicast route" >&2; exit 125; }
     exec "$@"' netns-run "$@"
