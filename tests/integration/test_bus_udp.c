@@ -242,8 +242,9 @@ static void test_kernel_drops_are_counted_as_overflow(void)
     open_udp(&a, "udp");
     md_bus_t b;
     open_udp(&b, "udp");
-    // b does not read while a floods: its socket buffer must overflow.
-    const uint32_t n = 20000;
+    // b does not read while a floods: its socket buffer must overflow, even
+    // the 16 MiB one root gets (each datagram costs ~1 kB of buffer).
+    const uint32_t n = 100000;
     for (uint32_t i = 0; i < n; ++i) {
         const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
         TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
