@@ -110,15 +110,39 @@ def main() -> int:
         w(f"The MHTC step is {100.0 * mh / tot_m7:.0f}% of the cycle. Of its {interval.get('models', '?')} model "
           f"hypotheses, {interval.get('reused', '?')} reuse the EM fit of a parent with a similar prior "
           f"(re-evaluated: ζ, log-posterior, Laplace evidence, associations) and {interval.get('shared', '?')} are "
-          "exact copies; the rest each run MAP-EM to a relative tolerance of 1e-7. What is left is mostly EM "
-          "iterations of the G = 3 model (the weak third neuron is not separated in 2-D, so that fit converges "
-          "slowly: ~130 iterations against 9-10 for G = 1, 2) and one Laplace evidence (App. B Hessian) per model "
-          "hypothesis. Clustering alone (G = 1..4, no reuse possible) is itself above the budget. newlib's exp on "
-          "this toolchain is already the table-driven one (~0.1 kB, tens of instructions): a polynomial exp was "
-          "tried and was slower. Remaining levers (not taken): an EM accelerator (Aitken/SQUAREM) for the slow "
-          "G = 3 fits, a tighter iteration bound on the MCU (a quality trade-off), "
-          "BIC instead of Laplace for the evidence (the thesis' own speed option, §3.6 and §4.6, at a cost in tracking "
-          "accuracy). Detection, PCA and control are far inside the budget.")
+          "exact copies; the rest each run MAP-EM, SQUAREM-accelerated, to a relative tolerance of 1e-7. What is "
+          "left (next table): the EM fits of the G = 3 model (the weak third neuron is not separated in 2-D; "
+          "17-46 EM steps per fit with SQUAREM, ~130 without) and one Laplace evidence (App. B Hessian, "
+          "~1 M instructions each) per model hypothesis, reused fits included. Clustering alone (G = 1..4, no reuse "
+          "possible) is itself below the budget now, but detection and PCA (26 M on the M7) leave 22 M for MHTC. "
+          "newlib's exp on this toolchain is already the table-driven one (~0.1 kB, tens of instructions): a "
+          "polynomial exp was tried and was slower. Remaining levers, not taken: the data part of the Laplace "
+          "Hessian of a reused fit is the donor's (only the mean-prior blocks differ, eq. B.21-B.23), so caching it "
+          "would remove ~12 of the 24 per-point Hessian passes (~14 M host instructions) at ~5-11 KB of workspace "
+          "per cached model class; a tighter iteration bound on the MCU (a quality trade-off); BIC instead of "
+          "Laplace (changes the algorithm's evidence: not taken). Detection, PCA and control are far inside the "
+          "budget.")
+    w("")
+    w("### Where the MHTC step goes")
+    w("")
+    w("Host callgrind, inclusive instructions of md-bench's `mhtc` stage, split by model class with "
+      "`tools/bench/profile_mhtc.sh REV` (a throw-away copy of the tree that calls em_fit and the evidence "
+      "through one non-inlined wrapper per G). No G = 4 model survives P3 pruning (eq. 4.11) in this step; "
+      "PCA is its own stage (above).")
+    w("")
+    w("| part of one mhtc_step | before (bb05bff) | now (SQUAREM + evidence) |")
+    w("|---|---:|---:|")
+    w("| EM fits, G = 1 | 3,887,657 | 2,861,027 |")
+    w("| EM fits, G = 2 | 5,148,074 | 5,261,761 |")
+    w("| EM fits, G = 3 | 78,112,334 | 37,199,404 |")
+    w("| Laplace evidence, G = 1 | 5,485,040 | 4,777,387 |")
+    w("| Laplace evidence, G = 2 | 11,282,723 | 9,268,863 |")
+    w("| Laplace evidence, G = 3 | 18,123,494 | 14,285,976 |")
+    w("| seeding from the targets (em_seed_from_targets) | 1,872,533 | 1,872,533 |")
+    w("| commit: Kalman updates (kf_update 2.50 M) and track bookkeeping | 2,679,102 | 2,678,697 |")
+    w("| Murty / LAP (murty_best incl. lap_solve) | 261,773 | 262,381 |")
+    w("| labels, outlier table, prediction, priors | < 0.3 M | < 0.3 M |")
+    w("| **whole step** | **127,654,369** | **79,267,462** |")
     w("")
     w("### Before and after (perf work of issue 7)")
     w("")
@@ -135,17 +159,24 @@ def main() -> int:
       "141,677,640 | 57,704,680 | 167,651,480 | 24 |")
     w("| tolerance 1e-7 (MD_EM_TOL_REL) instead of 1e-6 + sharing/reuse (1e-6 cost closed-loop ID consistency, "
       "below) | 170,012,320 | 82,348,440 | 196,150,280 | 22 |")
-    w("| **now: E-step point, scatter and evidence terms inlined with a literal d = 2 (bit-identical fits)** | "
+    w("| E-step point, scatter and evidence terms inlined with a literal d = 2 (bit-identical fits) | "
       "119,979,520 | 54,184,280 | 146,117,480 | 18 |")
+    w("| SQUAREM between EM steps (same fixed point; log-posterior never decreases; host callgrind only, "
+      "no M7 run of this commit) | host Ir 85,824,819 | host Ir 38,014,773 | host Ir 113,235,865 | |")
+    w(f"| **now: + Laplace Hessian summed over its upper triangle, one log-sum-exp per point** | "
+      f"{mh:,} | {int(m7.get('cluster', {}).get('instr', '0') or 0):,} | {int(tot_m7):,} | "
+      f"{float(host.get('mhtc', {}).get('median_ms', 'nan')):.0f} |")
     w("")
     w("Quality guard, MHTC (docs/tracking-eval.md, 5 scenarios; final-lineage ID consistency / spurious tracks, "
-      "then online): seeds 1-3 before 0.741 / 15, 0.683 / 23; now 0.743 / 18, 0.671 / 25. Seeds 4-6 (held out) "
-      "before 0.708 / 13, 0.676 / 24; now 0.708 / 14, 0.655 / 28. Final-lineage consistency is unchanged; the "
-      "online view and the spurious count are slightly worse (any tolerance looser than 1e-10 does this on seeds "
-      "4-6: 1e-6 gave 0.641 online). The closed-loop suite (`tools/eval/run_suite.py --scenarios single_neuron "
-      "--trackers 0 --seeds 18 --max-duration-s 300`) decided between 1e-6 and 1e-7: ID consistency 0.56 before, "
-      "0.47 at 1e-6, 0.55 at 1e-7 (0.53 at 1e-8), so 1e-6 was not kept. Clustering consistency "
-      "(docs/clustering-consistency.md): Ψ MAP 72 vs ML 236 (was 70 vs 236).")
+      "then online): seeds 1-3 before the perf work 0.741 / 15, 0.683 / 23; before SQUAREM 0.743 / 18, 0.671 / 25; "
+      "now 0.741 / 14, 0.691 / 24. Seeds 4-6 (held out) before the perf work 0.708 / 13, 0.676 / 24; before "
+      "SQUAREM 0.708 / 14, 0.655 / 28; now 0.743 / 13, 0.686 / 27. SQUAREM stops nearer the optimum for the same "
+      "stopping rule (a slowly converging fit stops early under a relative tolerance), which gave back the online "
+      "figures the looser tolerance had cost. The closed-loop suite (`tools/eval/run_suite.py --scenarios "
+      "single_neuron --trackers 0 --seeds 18 --max-duration-s 300`), which decided between 1e-6 and 1e-7: ID "
+      "consistency 0.56 before the perf work, 0.47 at 1e-6, 0.55 at 1e-7 (0.53 at 1e-8); now 0.55 (accuracy 0.61, "
+      "18/18 isolated). Clustering consistency (docs/clustering-consistency.md): Ψ MAP 72 vs ML 236 (was 70 vs "
+      "236; not regenerated after SQUAREM).")
     w("")
     w("How the M7 counts are taken: `tests/target/bench_m7.c` (image `md-bench-m7`, linked like the target "
       "tests) runs the same stage code under `qemu-system-arm -M mps2-an500 -icount shift=0`; virtual time then "
