@@ -162,7 +162,7 @@ def main() -> int:
     w("| E-step point, scatter and evidence terms inlined with a literal d = 2 (bit-identical fits) | "
       "119,979,520 | 54,184,280 | 146,117,480 | 18 |")
     w("| SQUAREM between EM steps (same fixed point; log-posterior never decreases; host callgrind only, "
-      "no M7 run of this commit) | host Ir 85,824,819 | host Ir 38,014,773 | host Ir 113,235,865 | |")
+      "no M7 run of this commit) | host Ir 85,824,819 | host Ir 38,014,773 | host Ir 113,235,975 | |")
     w(f"| **now: + Laplace Hessian summed over its upper triangle, one log-sum-exp per point** | "
       f"{mh:,} | {int(m7.get('cluster', {}).get('instr', '0') or 0):,} | {int(tot_m7):,} | "
       f"{float(host.get('mhtc', {}).get('median_ms', 'nan')):.0f} |")
