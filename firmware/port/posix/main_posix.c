@@ -9,6 +9,7 @@
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <stddef.h>
 #include <string.h>
 #include <time.h>
 
@@ -131,7 +132,8 @@ typedef struct {
 static int set_named_param(md_node_t *node, const char *arg)
 {
     const char *eq = strchr(arg, '=');
-    const size_t len = (eq == NULL) ? 0u : (size_t)(eq - arg);
+    const ptrdiff_t name_len = (eq == NULL) ? 0 : eq - arg;
+    const size_t len = (size_t)name_len;
     for (size_t i = 0u; i < md_params_count() && len > 0u; ++i) {
         const md_param_def_t *d = md_params_def(i);
         if (strlen(d->name) == len && strncmp(d->name, arg, len) == 0) {
@@ -283,7 +285,7 @@ int main(int argc, char **argv)
     md_controller_t *ctl = md_controller_instance(); /* the controller's whole state: static, no heap */
     md_node_t *node = md_controller_node(ctl);
     static posix_port_ctx_t port_ctx;
-    static options_t opt = {"auto", NULL, NULL, 0, {NULL}, 0};
+    static options_t opt = {.bus_spec = "auto"}; /* the rest: none given */
     const int parsed = parse_options(argc, argv, &opt);
     if (parsed != 0) {
         if (parsed < 0) {
