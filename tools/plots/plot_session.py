@@ -258,8 +258,27 @@ def plot_status(s, out, els, label=""):
     return save(fig, out, "status.png", f"{label}SFSM state, SNR, IQM and depth against time")
 
 
+def best_rank_history(msgs):
+    """[(t_min, rank)] of the session's final best hypothesis and its ancestors (thesis Fig. 4.13): from rank
+    0 of the last cycle back through the parents. HypId = (tracker interval << 8) | (parent index << 4) | rank
+    (firmware/app/md_telemetry.c), the parent index being its rank in the previous generation. The chain
+    stops where the tracker's interval count does not step by one (a skipped cycle, a tracker restart)."""
+    hist, rank = [], 0
+    for i in range(len(msgs) - 1, -1, -1):
+        m = msgs[i]
+        ks = [k for k in range(m.num_hypotheses) if m.rank[k] == rank]
+        if not ks:
+            break
+        hid = m.hyp_id[ks[0]]
+        hist.append((minutes(m.utime), rank))
+        if i == 0 or msgs[i - 1].num_hypotheses == 0 or (msgs[i - 1].hyp_id[0] >> 8) != (hid >> 8) - 1:
+            break
+        rank = (hid >> 4) & 0x0F
+    return hist[::-1]
+
+
 def plot_hypotheses(s, out, els, label=""):
-    fig, ax = new_figure(len(els), 2)
+    fig, ax = new_figure(len(els), 3, w=4.6)
     for r, e in enumerate(els):
         msgs = [m for m in s["MD_HYPOTHESES"] if m.electrode == e]
         n_rank = max([m.num_hypotheses for m in msgs] + [1])
@@ -280,10 +299,18 @@ def plot_hypotheses(s, out, els, label=""):
                                labels=[f"rank {k}" for k in range(n_rank)])
         ax[r, 1].set(title=f"electrode {e}: probability mass by rank", xlabel="time (min)", ylabel="P")
         ax[r, 1].set_ylim(bottom=0.0)  # the controller's P need not sum to 1 over ranks (eq. 4.30, Remark 4.3)
+        msgs.sort(key=lambda m: m.cycle)
+        bh = np.array(best_rank_history(msgs)).reshape(-1, 2)
+        ax[r, 2].plot(bh[:, 0], bh[:, 1] + 1, "o-", ms=3, color="k", drawstyle="steps-mid")
+        ax[r, 2].set_ylim(max(n_rank, 2) + 0.5, 0.5)
+        ax[r, 2].set_yticks(range(1, max(n_rank, 2) + 1))
+        ax[r, 2].set(title=f"electrode {e}: rank of the final best hypothesis", xlabel="time (min)",
+                     ylabel="rank (1 = leading)")
     caption(fig, "MHTC's global hypotheses after every cycle (TLM_HYP): log-probability of each rank (rank 0 = the "
-                 "leading hypothesis, bold) and the probability mass held by each rank. Mass spread over many "
-                 "ranks = an ambiguous interval that delayed decision making keeps open. Baseline trackers keep "
-                 "one hypothesis.")
+                 "leading hypothesis, bold), the probability mass held by each rank (mass spread over many ranks = "
+                 "an ambiguous interval that delayed decision making keeps open), and, as in thesis Fig. 4.13, the "
+                 "rank the final best hypothesis's ancestors held at each interval (rank > 1 = the delayed decision "
+                 "paid off). Baseline trackers keep one hypothesis.")
     return save(fig, out, "hypotheses.png", f"{label}Hypothesis rank history")
 
 
