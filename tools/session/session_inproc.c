@@ -37,6 +37,7 @@
 #include "md_controller.h"
 #include "md_params.h"
 #include "session.h"
+#include "simnode_bus_fault.h"
 #include "simnode_plant.h"
 #include "simnode_world.h"
 
@@ -180,19 +181,7 @@ static int wrap_bus_faults(inproc_t *ip)
     for (uint32_t i = 0; i < ip->faults->n_bus && i < SCENARIO_BUS_FAULTS_MAX; i++) {
         const scenario_bus_fault_t *b = &ip->faults->bus[i];
         md_bus_fault_params_t p;
-        md_bus_fault_default_params(&p);
-        if (b->kind < (uint32_t)MD_BUS_FAULT_KINDS) {
-            p.prob[b->kind] = b->prob;
-        }
-        p.directions = b->directions;
-        p.delay_frames = (b->frames > 0u) ? b->frames : p.delay_frames;
-        if (b->has_id != 0u) {
-            p.id_mask = 0x1FFFFFFFu;
-            p.id_match = b->can_id;
-        }
-        p.t_from_us = (int64_t)(b->from_s * 1e6);
-        p.t_to_us = (b->to_s < 9.2e12) ? (int64_t)(b->to_s * 1e6) : INT64_MAX;
-        p.seed = ip->opts->seed * 0x9E3779B97F4A7C15ull + i + 1u;
+        simnode_bus_fault_params(b, ip->opts->seed, i, &p);
         if (md_bus_fault_wrap(&ip->fault[i], ip->plant_bus, &p, fault_clock, ip) != 0) {
             fprintf(stderr, "microdrive-session: bus fault %u of the scenario is invalid\n", (unsigned)i);
             return -1;
