@@ -290,13 +290,13 @@ def plot_hypotheses(s, out, els, label=""):
         cmap = plt.get_cmap("plasma")
         for k in range(n_rank):
             ax[r, 0].plot(t, lp[:, k], "o-", ms=2, lw=2.2 if k == 0 else 0.8, color=cmap(k / max(1, n_rank)),
-                          label=f"rank {k}")
+                          label=f"rank {k + 1}")
         ax[r, 0].set(title=f"electrode {e}: log-probability per rank", xlabel="time (min)", ylabel="log P")
         ax[r, 0].legend(fontsize=6, ncol=2)
         p = np.nan_to_num(np.exp(lp))
         if len(t):
             ax[r, 1].stackplot(t, p.T, colors=[cmap(k / max(1, n_rank)) for k in range(n_rank)],
-                               labels=[f"rank {k}" for k in range(n_rank)])
+                               labels=[f"rank {k + 1}" for k in range(n_rank)])
         ax[r, 1].set(title=f"electrode {e}: probability mass by rank", xlabel="time (min)", ylabel="P")
         ax[r, 1].set_ylim(bottom=0.0)  # the controller's P need not sum to 1 over ranks (eq. 4.30, Remark 4.3)
         msgs.sort(key=lambda m: m.cycle)
@@ -306,7 +306,7 @@ def plot_hypotheses(s, out, els, label=""):
         ax[r, 2].set_yticks(range(1, max(n_rank, 2) + 1))
         ax[r, 2].set(title=f"electrode {e}: rank of the final best hypothesis", xlabel="time (min)",
                      ylabel="rank (1 = leading)")
-    caption(fig, "MHTC's global hypotheses after every cycle (TLM_HYP): log-probability of each rank (rank 0 = the "
+    caption(fig, "MHTC's global hypotheses after every cycle (TLM_HYP): log-probability of each rank (rank 1 = the "
                  "leading hypothesis, bold), the probability mass held by each rank (mass spread over many ranks = "
                  "an ambiguous interval that delayed decision making keeps open), and, as in thesis Fig. 4.13, the "
                  "rank the final best hypothesis's ancestors held at each interval (rank > 1 = the delayed decision "
