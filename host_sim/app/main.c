@@ -274,12 +274,7 @@ static int wrap_bus_faults(simproc_t *sp, const scenario_t *sc, uint64_t seed)
 static void print_faults(const simproc_t *sp, const scenario_t *sc)
 {
     for (uint32_t i = 0; i < sp->n_fault; i++) {
-        const md_bus_fault_counters_t c = md_bus_fault_counters(&sp->fault[i]);
-        fprintf(stderr, "microdrive-sim: bus fault %u: frames seen %" PRIu64, (unsigned)i, c.frames_seen);
-        for (uint32_t k = 0; k < (uint32_t)MD_BUS_FAULT_KINDS; k++) {
-            fprintf(stderr, ", %s %" PRIu64, md_bus_fault_kind_name((md_bus_fault_kind_t)k), c.injected[k]);
-        }
-        fprintf(stderr, ", hold full %" PRIu64 "\n", c.hold_full);
+        simnode_bus_fault_print(stderr, "microdrive-sim", i, &sp->fault[i]);
     }
     if (sc->faults.n_silent > 0u) {
         fprintf(stderr,

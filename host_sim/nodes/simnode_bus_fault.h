@@ -8,6 +8,7 @@
 #define SIMNODE_BUS_FAULT_H
 
 #include <stdint.h>
+#include <stdio.h>
 
 #include "md_bus_fault.h"
 #include "scenario/scenario.h"
@@ -18,5 +19,9 @@
 /// fault, the same for the same session seed). O(1).
 void simnode_bus_fault_params(const scenario_bus_fault_t *b, uint64_t session_seed, uint32_t index,
                               md_bus_fault_params_t *p);
+
+/// One line on `out`: "<prog>: bus fault <index>: frames seen N, <kind> N...,
+/// hold full N" — what the wrapper injected (the fault campaign parses it). O(kinds).
+void simnode_bus_fault_print(FILE *out, const char *prog, uint32_t index, const md_bus_fault_t *f);
 
 #endif

@@ -360,12 +360,7 @@ static void print_faults(const inproc_t *ip)
                 m.saturated_samples);
     }
     for (uint32_t i = 0; i < ip->n_fault; i++) {
-        const md_bus_fault_counters_t c = md_bus_fault_counters(&ip->fault[i]);
-        fprintf(stderr, "microdrive-session: bus fault %u: frames seen %" PRIu64, (unsigned)i, c.frames_seen);
-        for (uint32_t k = 0; k < (uint32_t)MD_BUS_FAULT_KINDS; k++) {
-            fprintf(stderr, ", %s %" PRIu64, md_bus_fault_kind_name((md_bus_fault_kind_t)k), c.injected[k]);
-        }
-        fprintf(stderr, ", hold full %" PRIu64 "\n", c.hold_full);
+        simnode_bus_fault_print(stderr, "microdrive-session", i, &ip->fault[i]);
     }
     if (ip->faults->n_silent > 0u) {
         fprintf(stderr,
