@@ -169,6 +169,27 @@ static void test_large_scale_data_still_fits(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 10.0 * f, g_basis.total_var * 1e-200);
 }
 
+/* docs/fuzzing.md finding 5 (crashes/fuzz_pca/subnormal_variance_eigval_above_trace):
+ * samples of ~1e-160 have squared deviations in the subnormal range, where
+ * the trace and the eigenvalues lose relative precision (an eigenvalue came
+ * out above the trace). Such a variance is refused; 1e-140 still fits. */
+static void test_variance_below_normal_range_is_degenerate(void)
+{
+    double u1[DW], u2[DW], m[DW];
+    make_data(u1, u2, m);
+    for (size_t i = 0u; i < N_PTS * MD_WAVE_LEN_MAX; ++i) {
+        g_wave[i] *= 1e-160;
+    }
+    TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, pca_fit(g_wave, N_PTS, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+    for (size_t i = 0u; i < N_PTS * MD_WAVE_LEN_MAX; ++i) {
+        g_wave[i] *= 1e20;
+    }
+    TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(g_wave, N_PTS, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
+    TEST_ASSERT_TRUE(g_basis.eigval[0] <= g_basis.total_var);
+    const double f = (double)N_PTS / (double)(N_PTS - 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 9.0 * f, g_basis.eigval[0] * 1e280);
+}
+
 /* docs/fuzzing.md finding 3 (crashes/fuzz_pca/identical_waveforms_ok_instead_of_degenerate):
  * 25 identical windows of 31354 counts x 0.195 uV (a saturated front-end):
  * the rounded mean leaves a trace of ~1e-23, which used to give MD_OK and a
@@ -229,5 +250,6 @@ int main(void)
     RUN_TEST(test_trace_overflow_is_numeric);
     RUN_TEST(test_large_scale_data_still_fits);
     RUN_TEST(test_identical_windows_within_rounding_are_degenerate);
+    RUN_TEST(test_variance_below_normal_range_is_degenerate);
     return UNITY_END();
 }

@@ -100,7 +100,8 @@ static double pca_max_abs(const pca_src_t *src, size_t n, size_t d_w)
 
 /* Trace of the covariance after checking that it is usable: MD_E_NUMERIC if
  * the mean, an entry or the sum overflowed; MD_E_DEGENERATE if the spread is
- * zero or rounding error (PCA_DEGENERATE_REL). */
+ * zero, rounding error (PCA_DEGENERATE_REL) or too small to hold full
+ * precision (PCA_VAR_MIN). */
 static md_status_t pca_check_cov(const pca_src_t *src, size_t n, size_t d_w, const double *mean, const double *cov,
                                  double *trace)
 {
@@ -115,7 +116,7 @@ static md_status_t pca_check_cov(const pca_src_t *src, size_t n, size_t d_w, con
         return MD_E_NUMERIC;
     }
     /* compared as an RMS so that the floor cannot overflow for large data */
-    if (!(t > 0.0) || !(sqrt(t / (double)d_w) > PCA_DEGENERATE_REL * pca_max_abs(src, n, d_w))) {
+    if (!(t >= PCA_VAR_MIN) || !(sqrt(t / (double)d_w) > PCA_DEGENERATE_REL * pca_max_abs(src, n, d_w))) {
         return MD_E_DEGENERATE;
     }
     *trace = t;

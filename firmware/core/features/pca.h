@@ -16,6 +16,7 @@
 #ifndef PCA_H
 #define PCA_H
 
+#include <float.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -30,6 +31,11 @@
 /// fitted to them is noise. Real windows (int16 counts, >= 1 count apart out
 /// of <= 32768) are >= 3e-5 relative apart.
 #define PCA_DEGENERATE_REL 1e-10
+/// Smallest total variance fitted: below DBL_MIN / DBL_EPSILON (~2e-292) the
+/// squared deviations fall into the subnormal range, lose relative precision,
+/// and an eigenvalue can exceed the trace (docs/fuzzing.md finding 5). No
+/// physical recording comes near it (int16 counts × a µV gain).
+#define PCA_VAR_MIN (DBL_MIN / DBL_EPSILON)
 
 /// A PCA basis of one interval.
 typedef struct {
@@ -52,7 +58,7 @@ typedef struct {
 /// Preconditions: n >= 2, d_w in [d, MD_WAVE_LEN_MAX], stride >= d_w,
 /// 1 <= d <= MD_FEAT_DIM_MAX. MD_E_DEGENERATE if all waveforms are equal
 /// within rounding (sqrt(total_var / d_w) <= PCA_DEGENERATE_REL · max|x|,
-/// zero variance included), MD_E_NUMERIC on non-finite input or when the
+/// zero variance included) or if total_var < PCA_VAR_MIN, MD_E_NUMERIC on non-finite input or when the
 /// mean, a covariance entry, the trace or an eigenpair is not finite
 /// (magnitudes near sqrt(DBL_MAX) overflow), MD_E_NOCONVERGE from the
 /// eigen-solver. Nothing non-finite is reported with MD_OK.
