@@ -13,7 +13,7 @@
 #define CAL_BIT_HALF (1u << 31)
 #define US_PER_MS 1000u
 #define STEP_LEARN_GAIN 0.5      /* weight of a new observation of the step length */
-#define STEP_LEARN_MIN_UM 1.0    /* a move shorter than this says little about the step (Hall noise) */
+#define STEP_LEARN_MIN_UM 4.0    /* a move shorter than this says little about the step (Hall noise) */
 #define STEP_EST_RANGE 4.0       /* the estimate stays within [nominal / 4, nominal * 4] */
 #define NM_PER_UM 1000.0
 
@@ -197,6 +197,7 @@ md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, d
     s->no_motion = 0u;
     s->cmd_travel_um[0] = 0.0;
     s->cmd_travel_um[1] = 0.0;
+    s->move_steps = 0u;
     s->rechecking = false;
     s->result = MD_SERVO_R_NONE;
     s->phase = MD_SERVO_MEASURE;
@@ -343,9 +344,10 @@ static double worst_step_um(const md_servo_t *s, size_t k)
 }
 
 /* Steps toward the goal, planned so that even steps MD_SERVO_STEP_SAFETY
- * times longer than learned stay inside the region, and so that the travel
+ * times longer than learned stay inside the region, so that the travel
  * commanded in this move (worst-case steps, whatever the sensor reports)
- * stays within the distance from d0 to the region's edge. 0 if none fits. */
+ * stays within the distance from d0 to the region's edge, and no more than
+ * the next chunk (probe, then growth) of the move. 0 if none fits. */
 static uint16_t plan_steps(md_servo_t *s, double depth, size_t k)
 {
     const double err = fabs(s->goal_um - depth);
@@ -358,6 +360,11 @@ static uint16_t plan_steps(md_servo_t *s, double depth, size_t k)
     if (n_budget < n) {
         n = n_budget;
         s->stats.budget_limited++;
+    }
+    const double chunk = fmax((double)MD_SERVO_PROBE_STEPS, (double)MD_SERVO_CHUNK_GROWTH * (double)s->move_steps);
+    if (chunk < n) {
+        n = chunk; /* measured before the next, larger chunk goes out */
+        s->stats.chunk_limited++;
     }
     n = fmin(n, (double)UINT16_MAX);
     return (n >= 1.0) ? (uint16_t)n : 0u;
@@ -468,6 +475,7 @@ static md_servo_action_t measure(md_servo_t *s)
     s->cmd_dir = (k == 0u) ? (uint8_t)MD_ACT_DIR_ADVANCE : (uint8_t)MD_ACT_DIR_RETRACT;
     s->cmd_steps = n;
     s->cmd_travel_um[k] += (double)n * worst_step_um(s, k);
+    s->move_steps += n;
     s->phase = MD_SERVO_MOVING;
     s->stats.commands++;
     s->stats.steps += n;

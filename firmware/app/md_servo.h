@@ -23,6 +23,12 @@
 ///   step length (at least MD_SERVO_STEP_FLOOR × step_nm), never add up to more
 ///   than the distance from d0 to the region's edge: a sensor that stops
 ///   following (stuck, dead) cannot make the servo command more than Δmax;
+/// - the commands of one move grow from a probe: the first carries at most
+///   MD_SERVO_PROBE_STEPS steps, each later one at most MD_SERVO_CHUNK_GROWTH
+///   times the steps already commanded in the move, and each is measured
+///   before the next goes out. A drive that runs against the command (a
+///   slipping carrier) is therefore caught after a probe's travel, not after
+///   a whole move's worth of steps (docs/safety.md, H4);
 /// - stalls (ACT_STATUS stalled, or no Hall change for a commanded travel),
 ///   end stops and actuator faults end the move (no retry). A no-change stall
 ///   marks the sensor suspect: the next move does not start while every
@@ -55,6 +61,13 @@
 /// step_nm: stick-slip retract steps run 0.8-0.9 of the advance step, so the
 /// learned length is used, but a drifting estimate cannot buy many more steps.
 #define MD_SERVO_STEP_FLOOR 0.75
+/// Steps of a move's first command: at 40 nm a probe of 0.4 µm; a drive that
+/// slips 2 µm back on every step (50 step lengths, beyond any stick-slip
+/// stroke) is caught 20 µm away, inside Δmax.
+#define MD_SERVO_PROBE_STEPS 10u
+/// A later command of the move carries at most this × the steps commanded
+/// before it (10, 30, 120, 480 ...: a 30 µm move takes 5 commands).
+#define MD_SERVO_CHUNK_GROWTH 3u
 #define MD_SERVO_CAL_INDEX_MID 0xF0u  ///< HALL_CALIB CoeffIndex of code_mid (DBC comment)
 #define MD_SERVO_CAL_INDEX_HALF 0xF1u ///< HALL_CALIB CoeffIndex of code_half
 
@@ -113,6 +126,7 @@ typedef struct {
     uint32_t clamped;       ///< targets clamped into the region
     uint32_t bad_readings;  ///< readings that the calibration turned into non-finite depths
     uint32_t budget_limited;///< commands shortened by the per-move travel budget
+    uint32_t chunk_limited; ///< commands shortened by the probe / chunk growth bound
     uint32_t rechecks;      ///< implausible displacements measured again
     uint32_t runaways;      ///< MD_SERVO_R_RUNAWAY (motion latched off)
     uint32_t suspect_refusals; ///< moves refused because the sensor still repeats its stuck code
@@ -153,6 +167,7 @@ typedef struct {
     uint8_t cmd_dir;
     uint16_t cmd_steps;
     double cmd_travel_um[2];    ///< travel commanded in this move, [0] advance, [1] retract (worst-case step)
+    uint32_t move_steps;        ///< steps commanded in this move (sizes the next chunk)
     bool rechecking;            ///< an implausible displacement is being measured again
     bool hall_suspect;          ///< the last stall showed no Hall change at all
     uint16_t stuck_code;        ///< the code the suspect sensor repeated

@@ -26,6 +26,7 @@ typedef struct {
     double next_read_s;
     uint8_t seq;
     uint32_t commands;
+    uint32_t stop_cmd;      /* the command that ended stalled at an end stop */
     double max_um, min_um;  /* true extremes during the current move */
 } rig_t;
 
@@ -85,6 +86,9 @@ static void rig_step(const md_servo_action_t *a)
     const actuator_status_t st = actuator_status(&rig.act);
     TEST_ASSERT_TRUE(st.state != ACTUATOR_MOVING);
     const uint8_t stops = (uint8_t)((st.at_upper_stop ? 1u : 0u) | (st.at_lower_stop ? 2u : 0u));
+    if (st.state == ACTUATOR_STALLED && stops != 0u) {
+        rig.stop_cmd = rig.commands;
+    }
     md_servo_act_status(&servo, rig.seq, (st.state == ACTUATOR_STALLED) ? MD_ACT_STALLED : MD_ACT_IDLE, stops,
                         (uint16_t)st.steps_done);
 }
@@ -129,7 +133,10 @@ static void test_converges_on_the_simulator_models(void)
     /* learned step lengths near the model's 40 nm advance and 34 nm retract */
     TEST_ASSERT_DOUBLE_WITHIN(0.006, 0.040, servo.step_um[0]);
     TEST_ASSERT_DOUBLE_WITHIN(0.006, 0.034, servo.step_um[1]);
-    TEST_ASSERT_LESS_OR_EQUAL_UINT(4u, iters_max);
+    /* 30 um is ~750-880 steps: chunks of 10, 30, 120, 480 and the rest
+     * (md_servo.h: MD_SERVO_PROBE_STEPS, MD_SERVO_CHUNK_GROWTH), then at
+     * most one correction */
+    TEST_ASSERT_LESS_OR_EQUAL_UINT(6u, iters_max);
     char line[160];
     (void)snprintf(line, sizeof line, "40 moves on md_sim models: worst true error %.3f um, at most %u commands per move",
                    worst, (unsigned)iters_max);
@@ -157,7 +164,8 @@ static void test_lower_end_stop(void)
     const uint32_t before = rig.commands;
     TEST_ASSERT_EQUAL_INT(MD_SERVO_R_END_STOP, move_to(5610.0, 0.0, 6000.0, 30.0));
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 5600.0, rig.act.position_um);
-    TEST_ASSERT_EQUAL_UINT32(before + 1u, rig.commands);
+    TEST_ASSERT_GREATER_THAN_UINT(before, rig.stop_cmd);
+    TEST_ASSERT_EQUAL_UINT32(rig.stop_cmd, rig.commands); /* no retry after the stop */
     TEST_ASSERT_TRUE(actuator_status(&rig.act).at_lower_stop);
 }
 
@@ -170,14 +178,16 @@ static void test_upper_end_stop(void)
 }
 
 /* A slider that no longer grips (step length ~0): the Hall code does not
- * follow, the servo declares a stall after MD_SERVO_STALL_REPEATS commands. */
+ * follow, the servo declares a stall after MD_SERVO_STALL_REPEATS commands
+ * whose expected travel is judged (the 10- and 30-step chunks, 0.4 and
+ * 1.2 um, are below MD_SERVO_STALL_MIN_UM). */
 static void test_stall_seen_by_hall(void)
 {
     rig_init(2000.0, 8u);
     rig.act.p.step_nm = 0.5;
     const uint32_t before = rig.commands;
     TEST_ASSERT_EQUAL_INT(MD_SERVO_R_STALL, move_to(2025.0, 0.0, 5000.0, 30.0));
-    TEST_ASSERT_EQUAL_UINT32(before + MD_SERVO_STALL_REPEATS, rig.commands);
+    TEST_ASSERT_EQUAL_UINT32(before + 2u + MD_SERVO_STALL_REPEATS, rig.commands);
 }
 
 int main(void)

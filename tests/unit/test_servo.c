@@ -26,6 +26,8 @@ typedef struct {
     uint16_t frozen_code;
     double slip_back_um;     /* > 0: every step moves this far AGAINST the command (runaway) */
     int fault;               /* every command answered with fault */
+    double hall_scale;       /* reported / true displacement (1: an honest sensor) */
+    uint32_t stop_cmd;       /* the command that ran into the lower stop (0: none) */
     uint32_t rng;
     double max_pos, min_pos; /* extremes reached */
     uint8_t seq;
@@ -49,6 +51,7 @@ static void plant_init(plant_t *p, double pos)
     p->lower_stop_um = 5600.0;
     p->rng = 12345u;
     p->max_pos = p->min_pos = pos;
+    p->hall_scale = 1.0;
 }
 
 static uint16_t plant_code(plant_t *p)
@@ -56,7 +59,7 @@ static uint16_t plant_code(plant_t *p)
     if (p->frozen) {
         return p->frozen_code;
     }
-    const double c = CODE_MID + CODES_PER_UM * (p->pos_um - 2800.0) + p->noise_codes * urand(p);
+    const double c = CODE_MID + CODES_PER_UM * p->hall_scale * (p->pos_um - 2800.0) + p->noise_codes * urand(p);
     return (uint16_t)floor(c + 0.5);
 }
 
@@ -94,6 +97,7 @@ static void plant_step(plant_t *p, md_servo_t *s, const md_servo_action_t *a)
         const double next = p->pos_um + (double)dir * len;
         if (next >= p->lower_stop_um) {
             p->pos_um = p->lower_stop_um;
+            p->stop_cmd = p->commands;
             md_servo_act_status(s, p->seq, MD_ACT_STALLED, 2u, done);
             return;
         }
@@ -291,7 +295,8 @@ static void test_end_stop(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, 5615.0, 0.0, 6000.0, 30.0));
     (void)run_move(&p, &s, 6);
     TEST_ASSERT_EQUAL_INT(MD_SERVO_R_END_STOP, s.result);
-    TEST_ASSERT_EQUAL_UINT32(1u, p.commands); /* no retry after an end stop */
+    TEST_ASSERT_GREATER_THAN_UINT(0u, p.stop_cmd);
+    TEST_ASSERT_EQUAL_UINT32(p.stop_cmd, p.commands); /* no retry after an end stop */
     TEST_ASSERT_FALSE(md_servo_busy(&s));
 }
 
@@ -306,7 +311,50 @@ static void test_stall_without_report(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, 1020.0, 0.0, 5000.0, 30.0));
     (void)run_move(&p, &s, 6);
     TEST_ASSERT_EQUAL_INT(MD_SERVO_R_STALL, s.result);
-    TEST_ASSERT_EQUAL_UINT32(MD_SERVO_STALL_REPEATS, p.commands);
+    /* chunks of 10 and 30 steps (0.4, 1.2 um expected) are below
+     * MD_SERVO_STALL_MIN_UM and not judged; the next ones are */
+    TEST_ASSERT_EQUAL_UINT32(2u + MD_SERVO_STALL_REPEATS, p.commands);
+}
+
+/* A sensor that under-reports motion (0.3 of the true travel) is not a
+ * stall, so the servo keeps commanding: the per-move budget, counted in
+ * commanded steps, ends it within Δmax of configured steps. */
+static void test_travel_budget_bounds_an_under_reporting_sensor(void)
+{
+    md_servo_t s;
+    plant_t p;
+    servo_new(&s);
+    calibrate(&s);
+    plant_init(&p, 1000.0);
+    p.hall_scale = 0.3;
+    p.noise_codes = 0.0;
+    p.frozen_code = plant_code(&p); /* the code at 1000 um as this sensor reports it */
+    const double d0 = 2800.0 + (double)(p.frozen_code - (uint16_t)CODE_MID) / CODES_PER_UM;
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, d0 + 30.0, 0.0, 5000.0, 30.0));
+    (void)run_move(&p, &s, 6);
+    TEST_ASSERT_GREATER_THAN_UINT(0u, s.stats.budget_limited);
+    TEST_ASSERT_LESS_OR_EQUAL_UINT(1000u, s.stats.steps); /* 30 um at 0.75 x 40 nm */
+    TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(1000.0 + 1000.0 * 0.047 * 1.1 + 1e-9, p.max_pos);
+}
+
+/* A carrier that slides 2 um back on every step (50 step lengths: a lost
+ * clamp, not a stick-slip stroke) is caught by the first, probe-sized
+ * command: the excursion stays inside Δmax and motion latches off. */
+static void test_gross_slip_caught_by_the_probe(void)
+{
+    md_servo_t s;
+    plant_t p;
+    servo_new(&s);
+    calibrate(&s);
+    plant_init(&p, 1000.0);
+    p.slip_back_um = 2.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_begin(&s, 1025.0, 0.0, 5000.0, 30.0));
+    (void)run_move(&p, &s, 6);
+    TEST_ASSERT_EQUAL_INT(MD_SERVO_R_RUNAWAY, s.result);
+    TEST_ASSERT_EQUAL_UINT32(1u, p.commands);
+    TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(MD_SERVO_PROBE_STEPS * 2.0 + 1e-9, 1000.0 - p.min_pos);
+    TEST_ASSERT_TRUE(1000.0 - p.min_pos < 30.0);
+    TEST_ASSERT_TRUE(md_servo_latched(&s));
 }
 
 static void test_fault_and_send_failure(void)
@@ -408,7 +456,6 @@ static void test_frozen_sensor_bounds_travel_and_blocks_next_move(void)
     TEST_ASSERT_EQUAL_INT(MD_SERVO_R_STALL, s.result);
     TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(1000.0 + 30.0 * (0.047 * 1.1 / 0.040) + 1e-9, p.max_pos);
     TEST_ASSERT_LESS_OR_EQUAL_UINT(750u, s.stats.steps); /* 30 um at the configured 40 nm */
-    TEST_ASSERT_GREATER_THAN_UINT(0u, s.stats.budget_limited);
     TEST_ASSERT_TRUE(s.hall_suspect);
     /* still frozen: the next move ends before any step */
     const uint32_t cmds = p.commands;
@@ -441,7 +488,10 @@ static void test_runaway_latches_motion_off(void)
     (void)run_move(&p, &s, 6);
     TEST_ASSERT_EQUAL_INT(MD_SERVO_R_RUNAWAY, s.result);
     TEST_ASSERT_EQUAL_STRING("runaway", md_servo_result_name(s.result));
-    TEST_ASSERT_EQUAL_UINT32(1u, p.commands); /* no second command into a runaway */
+    /* 0.1 um back per step: the 10-step probe (1 um) is within the noise
+     * slack, the 30-step chunk (3 um) is not; nothing after it */
+    TEST_ASSERT_EQUAL_UINT32(2u, p.commands);
+    TEST_ASSERT_LESS_OR_EQUAL_DOUBLE((10.0 + 30.0) * 0.1 + 1e-9, 1000.0 - p.min_pos);
     TEST_ASSERT_EQUAL_UINT32(1u, s.stats.rechecks);
     TEST_ASSERT_TRUE(md_servo_latched(&s));
     TEST_ASSERT_EQUAL_INT(MD_E_STATE, md_servo_begin(&s, 1020.0, 0.0, 5000.0, 30.0));
@@ -512,6 +562,8 @@ int main(void)
     RUN_TEST(test_region_clamps_step_max_and_window);
     RUN_TEST(test_first_move_with_wrong_step_estimate_stays_in_region);
     RUN_TEST(test_end_stop);
+    RUN_TEST(test_travel_budget_bounds_an_under_reporting_sensor);
+    RUN_TEST(test_gross_slip_caught_by_the_probe);
     RUN_TEST(test_stall_without_report);
     RUN_TEST(test_fault_and_send_failure);
     RUN_TEST(test_no_sensor_no_motion);
