@@ -225,6 +225,16 @@ static void recording_failed(md_cycle_t *c, md_node_t *node)
     el->rec_failed++;
     node->counters.rec_failed++;
     el->flags = MD_TLM_F_REC_FAILED | (c->lockstep ? MD_TLM_F_LOCKSTEP : 0u);
+    /* the status reports the depth now and asks for no step; without a
+     * depth yet (e.g. just after a restart) it says so instead of sending
+     * the placeholder as if it were measured */
+    double depth = 0.0;
+    if (md_servo_depth_um(&el->servo, &depth) == MD_OK) {
+        el->depth_um = depth;
+    } else {
+        el->flags |= MD_TLM_F_NO_DEPTH;
+    }
+    el->target_um = el->depth_um;
     (void)md_tlm_cycle(node, c->active, el, MD_TLM_PHASE_PROCESSED, el->rec_samples);
     (void)md_tlm_status(node, c->active, el, 0u);
     end_cycle(c, node);

@@ -6,13 +6,16 @@
 
 _Static_assert(MD_REC_SAMPLES_PER_FRAME == 30u, "REC_DATA packing below lists 30 sample fields");
 
-void simnode_fe_init(simnode_fe_t *fe, simnode_world_t *world, bool autostart, bool lockstep, simnode_sink_t sink)
+void simnode_fe_init(simnode_fe_t *fe, simnode_world_t *world, bool autostart, bool lockstep, uint32_t info_period_ms,
+                     simnode_sink_t sink)
 {
     memset(fe, 0, sizeof *fe);
     simnode_init(&fe->node, MD_NODE_FE, simnode_world_electrodes(world), autostart, lockstep, sink);
     fe->world = world;
     fe->rate_hz = simnode_world_fe_rate_hz(world);
     fe->gain_uv = simnode_world_fe_gain_uv(world);
+    fe->info_period_us = (uint64_t)info_period_ms * 1000u;
+    fe->next_info_us = UINT64_MAX;
 }
 
 static void fe_stream_end(simnode_fe_t *fe, uint32_t e)
@@ -21,8 +24,9 @@ static void fe_stream_end(simnode_fe_t *fe, uint32_t e)
     memset(&fe->st[e], 0, sizeof fe->st[e]);
 }
 
-void simnode_fe_announce(simnode_fe_t *fe)
+void simnode_fe_announce(simnode_fe_t *fe, uint64_t t_us)
 {
+    fe->next_info_us = t_us + fe->info_period_us;
     for (uint32_t e = 0; e < fe->node.electrodes; e++) {
         struct md_can_fe_info_t info;
         md_frame_t f;
@@ -135,20 +139,22 @@ void simnode_fe_abort(simnode_fe_t *fe, uint32_t e)
     }
 }
 
-void simnode_fe_on_nmt(simnode_fe_t *fe, simnode_nmt_effect_t effect)
+void simnode_fe_on_nmt(simnode_fe_t *fe, simnode_nmt_effect_t effect, uint64_t t_us)
 {
     switch (effect) {
     case SIMNODE_NMT_ENTER_OP:
-        simnode_fe_announce(fe);
+        simnode_fe_announce(fe, t_us);
         break;
     case SIMNODE_NMT_LEAVE_OP:
         simnode_fe_abort(fe, UINT32_MAX);
+        fe->next_info_us = UINT64_MAX;
         break;
     case SIMNODE_NMT_RESET:
         simnode_fe_abort(fe, UINT32_MAX);
         fe->node.fault = false;
+        fe->next_info_us = UINT64_MAX;
         if (simnode_operational(&fe->node)) {
-            simnode_fe_announce(fe);
+            simnode_fe_announce(fe, t_us);
         }
         break;
     case SIMNODE_NMT_CLEAR_ESTOP:
@@ -168,7 +174,7 @@ static uint64_t fe_frame_due_us(const simnode_fe_t *fe, const simnode_fe_stream_
 
 uint64_t simnode_fe_next_event_us(const simnode_fe_t *fe)
 {
-    uint64_t t = UINT64_MAX;
+    uint64_t t = simnode_operational(&fe->node) ? fe->next_info_us : UINT64_MAX;
     for (uint32_t e = 0; e < fe->node.electrodes; e++) {
         if (fe->st[e].active) {
             const uint64_t d = fe_frame_due_us(fe, &fe->st[e]);
@@ -180,6 +186,9 @@ uint64_t simnode_fe_next_event_us(const simnode_fe_t *fe)
 
 void simnode_fe_run(simnode_fe_t *fe, uint64_t t_us)
 {
+    if (simnode_operational(&fe->node) && t_us >= fe->next_info_us) {
+        simnode_fe_announce(fe, t_us);
+    }
     for (uint32_t e = 0; e < fe->node.electrodes; e++) {
         simnode_fe_stream_t *s = &fe->st[e];
         /* bounded: each pass sends one frame of a finite stream */

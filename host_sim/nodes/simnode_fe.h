@@ -2,7 +2,9 @@
 /// Neural front-end node (node 4): answers REC_REQ by streaming the interval
 /// as REC_DATA CAN FD frames (30 int16 samples each, the last one partial,
 /// Seq 0, 1, 2... per interval) and then REC_END; FE_INFO (sampling rate,
-/// gain) of every electrode when it becomes operational.
+/// gain) of every electrode when it becomes operational and then every
+/// info_period (like HALL_CALIB), so a controller that restarts while the
+/// front-end stays operational learns the sampling parameters again.
 ///
 /// Timing: the samples of an interval of n samples requested at t0 are taken
 /// at t0 + i / rate; frame j goes out when its last sample has been taken
@@ -43,14 +45,17 @@ typedef struct {
     uint32_t rate_hz;
     double gain_uv;
     uint64_t intervals_done;    ///< streams that ended complete
+    uint64_t info_period_us;    ///< FE_INFO repeat period (> 0)
+    uint64_t next_info_us;      ///< next FE_INFO; UINT64_MAX while not operational
     simnode_fe_stream_t st[SIMNODE_MAX_ELECTRODES];
 } simnode_fe_t;
 
-/// Initialises the node (state BOOT).
-void simnode_fe_init(simnode_fe_t *fe, simnode_world_t *world, bool autostart, bool lockstep, simnode_sink_t sink);
+/// Initialises the node (state BOOT); info_period_ms > 0.
+void simnode_fe_init(simnode_fe_t *fe, simnode_world_t *world, bool autostart, bool lockstep, uint32_t info_period_ms,
+                     simnode_sink_t sink);
 
-/// Sends FE_INFO of every electrode.
-void simnode_fe_announce(simnode_fe_t *fe);
+/// Sends FE_INFO of every electrode at t_us and schedules the next ones.
+void simnode_fe_announce(simnode_fe_t *fe, uint64_t t_us);
 
 /// Handles a REC_REQ at world time t_us: validates (length, electrode,
 /// 1 <= NumSamples <= SIMNODE_FE_MAX_SAMPLES), refuses silently when not
@@ -63,12 +68,14 @@ bool simnode_fe_on_req(simnode_fe_t *fe, const md_frame_t *f, uint64_t t_us);
 void simnode_fe_abort(simnode_fe_t *fe, uint32_t e);
 
 /// Reacts to an NMT command's effect on this node.
-void simnode_fe_on_nmt(simnode_fe_t *fe, simnode_nmt_effect_t effect);
+void simnode_fe_on_nmt(simnode_fe_t *fe, simnode_nmt_effect_t effect, uint64_t t_us);
 
-/// Earliest time of the next frame of any stream; UINT64_MAX when idle.
+/// Earliest time of the next frame of any stream or of the next FE_INFO;
+/// UINT64_MAX when idle and not operational.
 uint64_t simnode_fe_next_event_us(const simnode_fe_t *fe);
 
-/// Sends every frame due by t_us, in electrode order, ending streams.
+/// Sends every frame due by t_us, in electrode order, ending streams, and
+/// FE_INFO when it is due.
 void simnode_fe_run(simnode_fe_t *fe, uint64_t t_us);
 
 /// True while any stream is active.

@@ -63,7 +63,7 @@ md_status_t simnode_plant_init(simnode_plant_t *p, const simnode_plant_cfg_t *cf
     simnode_act_init(&p->act, world, cfg->autostart, cfg->lockstep, cfg->status_moving_ms, cfg->status_idle_ms,
                      node_sink);
     simnode_hall_init(&p->hall, world, cfg->autostart, cfg->lockstep, hall_rate, cfg->calib_period_ms, node_sink);
-    simnode_fe_init(&p->fe, world, cfg->autostart, cfg->lockstep, node_sink);
+    simnode_fe_init(&p->fe, world, cfg->autostart, cfg->lockstep, cfg->calib_period_ms, node_sink);
     p->now_us = simnode_world_time_us(world);
     p->next_clock_us = p->now_us;
     simnode_plant_silence_at(p, p->now_us);
@@ -152,7 +152,7 @@ void simnode_plant_start(simnode_plant_t *p)
         simnode_hall_announce(&p->hall, p->now_us);
     }
     if (simnode_boot_done(&p->fe.node)) {
-        simnode_fe_announce(&p->fe);
+        simnode_fe_announce(&p->fe, p->now_us);
     }
     plant_batch_close(p);
 }
@@ -170,7 +170,7 @@ static void plant_on_nmt(simnode_plant_t *p, const md_frame_t *f)
     }
     simnode_act_on_nmt(&p->act, simnode_nmt_apply(&p->act.node, m.nmt_command, m.nmt_target), p->now_us);
     simnode_hall_on_nmt(&p->hall, simnode_nmt_apply(&p->hall.node, m.nmt_command, m.nmt_target), p->now_us);
-    simnode_fe_on_nmt(&p->fe, simnode_nmt_apply(&p->fe.node, m.nmt_command, m.nmt_target));
+    simnode_fe_on_nmt(&p->fe, simnode_nmt_apply(&p->fe.node, m.nmt_command, m.nmt_target), p->now_us);
 }
 
 static void plant_on_estop(simnode_plant_t *p, const md_frame_t *f)

@@ -45,6 +45,7 @@ ID_ESTOP, ID_NMT, ID_EMCY_CTRL = 0x000, 0x001, 0x081
 ID_ACT_CMD, ID_REC_REQ, ID_REC_END = 0x210, 0x220, 0x410
 ID_HALL_READING, ID_HALL_CALIB, ID_TLM_STATUS = 0x300, 0x310, 0x500
 ID_HB_CTRL = 0x701
+TLM_F_NO_DEPTH = 0x0100   # MD_TLM_F_NO_DEPTH (firmware/app/md_cycle.h): no calibrated Hall depth in this status
 MONITORED = (2, 3, 4)
 NMT_START, NMT_CLEAR_ESTOP = 1, 131
 EMCY_HB_LOST = 0x8130
@@ -110,6 +111,7 @@ class Checker:
             if st == STATE_BOOT:
                 self.booted_at, self.saw_preop = t, False
                 self.counts["controller_boots"] += 1
+                self.counts["tlm_status_since_last_boot"] = 0   # resumed? (controller_restart)
                 self.recording.clear()
                 self.asked.clear()
             elif self.booted_at is not None:
@@ -154,6 +156,12 @@ class Checker:
         e = int(m["Electrode"])
         d, tg = float(m["Depth_um"]), float(m["TargetDepth_um"])
         self.counts["tlm_status"] += 1
+        if int(m["Flags"]) & TLM_F_NO_DEPTH:
+            self.counts["tlm_status_no_depth"] += 1   # no Hall depth yet: the fields hold no measurement
+            self.asked[e] = False
+            self.net_um[e] = 0.0
+            return
+        self.counts["tlm_status_since_last_boot"] += 1
         for what, v in (("depth", d), ("target", tg)):
             if not self.in_window(v):
                 self.violate("window", t, f"electrode {e}: TLM_STATUS {what} {v:.2f} um outside the window")
