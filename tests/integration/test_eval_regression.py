@@ -4,7 +4,7 @@
     test_eval_regression.py --build-dir DIR --work DIR
 
 Runs tools/eval/regression.py check: the CI subset of tools/eval/run_suite.py (single_neuron, drifting_pair,
-empty_tissue; MHTC and MAP-NN; 2 seeds; 300 simulated seconds each) on this build, every figure against its
+empty_tissue; MHTC and MAP-NN; 6 seeds; 300 simulated seconds each) on this build, every figure against its
 bound in tools/eval/thresholds.json (measured on the code of the committed docs/evaluation.md, bounds a little
 worse). Fails on any figure past its bound, a failed session, or a missing figure.
 """
