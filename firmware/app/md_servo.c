@@ -64,6 +64,38 @@ md_status_t md_servo_configure(md_servo_t *s, const md_servo_config_t *cfg)
 /* Calibration and readings                                            */
 /* ------------------------------------------------------------------ */
 
+/* The value in use at slot k (coefficient k, or MD_SERVO_CAL_MAX for code_mid,
+ * MD_SERVO_CAL_MAX + 1 for code_half). */
+static double *calib_slot(md_servo_t *s, size_t k)
+{
+    if (k == MD_SERVO_CAL_MAX) {
+        return &s->cal_mid;
+    }
+    return (k == MD_SERVO_CAL_MAX + 1u) ? &s->cal_half : &s->cal_coef[k];
+}
+
+/* A repetition of slot k while calibrated: equal to the value in use, it
+ * clears a pending change; different, it becomes pending, and is applied
+ * when the next repetition confirms it. */
+static void calib_confirm(md_servo_t *s, size_t k, double value)
+{
+    const uint32_t bit = (k == MD_SERVO_CAL_MAX) ? CAL_BIT_MID : ((k == MD_SERVO_CAL_MAX + 1u) ? CAL_BIT_HALF : (1u << k));
+    double *in_use = calib_slot(s, k);
+    if (!(value < *in_use) && !(value > *in_use)) {
+        s->cal_pend_have &= ~bit;
+        return;
+    }
+    if (((s->cal_pend_have & bit) != 0u) && !(value < s->cal_pend[k]) && !(value > s->cal_pend[k])) {
+        *in_use = value; /* seen twice in a row: a real change */
+        s->cal_pend_have &= ~bit;
+        s->stats.cal_changes++;
+        return;
+    }
+    s->cal_pend[k] = value;
+    s->cal_pend_have |= bit;
+    s->stats.cal_unconfirmed++;
+}
+
 md_status_t md_servo_calib(md_servo_t *s, uint8_t index, uint8_t count, double value)
 {
     if (s == NULL || !isfinite(value) || count == 0u || count > MD_SERVO_CAL_MAX) {
@@ -77,7 +109,12 @@ md_status_t md_servo_calib(md_servo_t *s, uint8_t index, uint8_t count, double v
     if (count != s->cal_count) {
         s->cal_count = count; /* a new set: start collecting again */
         s->cal_have = 0u;
+        s->cal_pend_have = 0u;
         s->calibrated = false;
+    }
+    if (s->calibrated) {
+        calib_confirm(s, mid ? MD_SERVO_CAL_MAX : (half ? MD_SERVO_CAL_MAX + 1u : (size_t)index), value);
+        return MD_OK;
     }
     if (mid) {
         s->cal_mid = value;

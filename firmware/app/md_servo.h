@@ -39,7 +39,11 @@
 ///   running away (slipping): the move ends and motion is LATCHED off until
 ///   md_servo_init() or md_servo_clear_fault() (operator action);
 /// - depths are the median of the readings (robust to Hall glitches);
-/// - no calibration or no fresh readings: no motion.
+/// - no calibration or no fresh readings: no motion;
+/// - once calibrated, a coefficient that arrives with another value is only
+///   applied when the next repetition carries the same value: one corrupted
+///   HALL_CALIB payload that passed the frame checks cannot shift the depth
+///   (docs/fault-campaign.md, bus_corrupt).
 /// The caller decides WHETHER to move at all (SFSM, node state, recording).
 #ifndef MD_SERVO_H
 #define MD_SERVO_H
@@ -131,6 +135,8 @@ typedef struct {
     uint32_t runaways;      ///< MD_SERVO_R_RUNAWAY (motion latched off)
     uint32_t suspect_refusals; ///< moves refused because the sensor still repeats its stuck code
     uint32_t latched_refusals; ///< md_servo_begin refused while motion is latched off
+    uint32_t cal_unconfirmed;  ///< calibration values that differed from the one in use (held back)
+    uint32_t cal_changes;      ///< calibration values changed after a confirming repetition
 } md_servo_stats_t;
 
 /// The servo of one electrode (caller-owned; ~0.8 kB).
@@ -142,6 +148,8 @@ typedef struct {
     uint8_t cal_count;          ///< CoeffCount of the staged set
     uint32_t cal_have;          ///< bit k: coefficient k received; bits 30/31 mid/half
     bool calibrated;
+    double cal_pend[MD_SERVO_CAL_MAX + 2u]; ///< changed values awaiting confirmation; [MAX] mid, [MAX+1] half
+    uint32_t cal_pend_have;     ///< bits as cal_have: which cal_pend entries are set
     /* readings (raw codes; converted when averaged, so a new calibration applies at once) */
     uint16_t code[MD_SERVO_AVG_MAX];
     uint8_t code_head, code_count;
@@ -191,10 +199,13 @@ md_status_t md_servo_init(md_servo_t *s, const md_servo_config_t *cfg);
 md_status_t md_servo_configure(md_servo_t *s, const md_servo_config_t *cfg);
 
 /// One HALL_CALIB frame: index < count a coefficient of x^index, or
-/// MD_SERVO_CAL_INDEX_MID / _HALF. A different count restarts the staged set
-/// (the previous complete calibration stays in use until the new one is
-/// complete). MD_E_ARG on a non-finite value, count 0 or > MD_SERVO_CAL_MAX,
-/// an index out of range, or code_half <= 0. O(1).
+/// MD_SERVO_CAL_INDEX_MID / _HALF. Until the first set is complete the values
+/// are staged; then the calibration is in use. After that, a value that
+/// differs from the one in use waits for the next repetition and is applied
+/// only if that carries the same value (stats.cal_unconfirmed,
+/// stats.cal_changes). A different count drops the calibration and starts a
+/// new set (no motion until it is complete). MD_E_ARG on a non-finite value,
+/// count 0 or > MD_SERVO_CAL_MAX, an index out of range, or code_half <= 0. O(1).
 md_status_t md_servo_calib(md_servo_t *s, uint8_t index, uint8_t count, double value);
 
 /// Depth of one raw code through the calibration (Horner in the normalised

@@ -181,6 +181,41 @@ static void test_calibration_staging(void)
     TEST_ASSERT_EQUAL_INT(MD_E_STATE, md_servo_code_to_depth_um(&s, 1u, &d));
 }
 
+/* bus_corrupt in the fault campaign: one HALL_CALIB payload corrupted within
+ * range (code_half 21964 -> 30156) shifted the depth by 550 um for a whole
+ * calibration period. A changed value is now applied only when the next
+ * repetition confirms it. */
+static void test_changed_calibration_needs_a_confirming_repetition(void)
+{
+    md_servo_t s;
+    servo_new(&s);
+    calibrate(&s);
+    double d0 = 0.0, d = 0.0;
+    const uint16_t code = (uint16_t)(CODE_MID + 500.0);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d0));
+    /* one corrupted value: held back, the depth does not move */
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, MD_SERVO_CAL_INDEX_HALF, 2u, HALF * 1.37));
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, d0, d);
+    TEST_ASSERT_EQUAL_UINT32(1u, s.stats.cal_unconfirmed);
+    /* the next repetition carries the value in use: the stray one is forgotten */
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, MD_SERVO_CAL_INDEX_HALF, 2u, HALF));
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, MD_SERVO_CAL_INDEX_HALF, 2u, HALF * 1.37));
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, d0, d);
+    TEST_ASSERT_EQUAL_UINT32(0u, s.stats.cal_changes);
+    /* a real recalibration repeats its value: applied on the second copy */
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, MD_SERVO_CAL_INDEX_HALF, 2u, HALF * 1.37));
+    TEST_ASSERT_EQUAL_UINT32(1u, s.stats.cal_changes);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 2800.0 + (500.0 / (HALF * 1.37)) * (HALF / CODES_PER_UM), d);
+    /* the same for a coefficient */
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, 0u, 2u, 9999.0));
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d0));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, d, d0);
+    TEST_ASSERT_TRUE(s.calibrated);
+}
+
 static void test_cubic_calibration_horner(void)
 {
     md_servo_t s;
@@ -557,6 +592,7 @@ int main(void)
     RUN_TEST(test_config_checks);
     RUN_TEST(test_calibration_staging);
     RUN_TEST(test_cubic_calibration_horner);
+    RUN_TEST(test_changed_calibration_needs_a_confirming_repetition);
     RUN_TEST(test_averaging);
     RUN_TEST(test_converges_both_directions_and_learns);
     RUN_TEST(test_region_clamps_step_max_and_window);
