@@ -111,13 +111,27 @@ def one_run(a, scen, kind, seed):
             "sim_s": float(m.group(1)) if m else None, "out": out}
 
 
+def build_line(session):
+    """Which code made the figures: the tree's commit (+dirty if it has uncommitted changes) and the
+    session binary's hash."""
+    import hashlib
+    def git(*args):
+        p = subprocess.run(["git", "-C", ROOT, *args], capture_output=True, text=True)
+        return p.stdout.strip() if p.returncode == 0 else "?"
+    dirty = "+dirty" if git("status", "--porcelain", "--untracked-files=no") else ""
+    with open(session, "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()[:16]
+    return (f"Build: git {git('rev-parse', '--short=10', 'HEAD')}{dirty}, "
+            f"`{os.path.relpath(session, ROOT)}` sha256 {digest}.")
+
+
 def write_doc(a, rows, path):
     cmd = (f".venv/bin/python tools/safety/campaign.py --seeds {a.seeds} --bus {a.bus} --cycles {a.cycles}"
            + (f" --first-seed {a.first_seed}" if a.first_seed != 1 else ""))
     lines = ["# Fault campaign", "",
              f"Regenerate: `nice -n 10 {cmd}` after building `microdrive-session` "
              "(fault scenarios in scenarios/faults/, invariants and the fault hooks in docs/safety.md). "
-             "The script overwrites this file.", "",
+             "The script overwrites this file.", "", build_line(a.session), "",
              f"Each run: one fault scenario, one seed ({a.first_seed}..{a.first_seed + a.seeds - 1}), "
              f"`--bus {a.bus} --cycles {a.cycles}`; its frame log and truth checked by "
              "tools/safety/check_invariants.py " + " ".join(a.check_args + ["--truth truth.jsonl"]) + ".", "",
