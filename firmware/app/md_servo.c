@@ -9,8 +9,8 @@
 
 #include "md_protocol.h"
 
-#define CAL_BIT_MID (1u << 30)
-#define CAL_BIT_HALF (1u << 31)
+#define CAL_BIT_MID 0x40000000u  /* bit 30 */
+#define CAL_BIT_HALF 0x80000000u /* bit 31 */
 #define US_PER_MS 1000u
 #define STEP_LEARN_GAIN 0.5      /* weight of a new observation of the step length */
 #define STEP_LEARN_MIN_UM 4.0    /* a move shorter than this says little about the step (Hall noise) */
@@ -74,12 +74,27 @@ static double *calib_slot(md_servo_t *s, size_t k)
     return (k == MD_SERVO_CAL_MAX + 1u) ? &s->cal_half : &s->cal_coef[k];
 }
 
+/* The bit of slot k in cal_have and cal_pend_have (layout of calib_slot). */
+static uint32_t calib_bit(size_t k)
+{
+    uint32_t bit = CAL_BIT_HALF;
+    if (k == MD_SERVO_CAL_MAX) {
+        bit = CAL_BIT_MID;
+    } else if (k < MD_SERVO_CAL_MAX) {
+        const uint32_t shift = (uint32_t)k & 0x0Fu; /* k < 16: the mask changes nothing */
+        bit = (uint32_t)1u << shift;
+    } else {
+        /* k == MD_SERVO_CAL_MAX + 1: code_half */
+    }
+    return bit;
+}
+
 /* A repetition of slot k while calibrated: equal to the value in use, it
  * clears a pending change; different, it becomes pending, and is applied
  * when the next repetition confirms it. */
 static void calib_confirm(md_servo_t *s, size_t k, double value)
 {
-    const uint32_t bit = (k == MD_SERVO_CAL_MAX) ? CAL_BIT_MID : ((k == MD_SERVO_CAL_MAX + 1u) ? CAL_BIT_HALF : (1u << k));
+    const uint32_t bit = calib_bit(k);
     double *in_use = calib_slot(s, k);
     if (!(value < *in_use) && !(value > *in_use)) {
         s->cal_pend_have &= ~bit;
