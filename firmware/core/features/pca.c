@@ -8,6 +8,7 @@
 #include "common/linalg.h"
 
 _Static_assert(MD_WAVE_LEN_MAX <= LINALG_MAX_N, "the covariance must fit the eigen-solver");
+_Static_assert(MD_FEAT_DIM_MAX <= EIGEN_TOP_K_MAX, "the eigen-solver must return every basis row");
 
 /* Waveform rows from doubles or from compact int16 counts times a gain. */
 typedef struct {
@@ -28,10 +29,15 @@ static const double *pca_row(const pca_src_t *src, size_t i, size_t d_w, double 
     return tmp;
 }
 
-/* Thesis footnote 5: Sigma = 1/(N-1) sum (x_i - xbar)(x_i - xbar)^T. */
+#define PCA_ROWS_PER_PASS 4u /* deviation rows folded into the covariance per pass over it */
+
+/* Thesis footnote 5: Sigma = 1/(N-1) sum (x_i - xbar)(x_i - xbar)^T, upper
+ * triangle accumulated PCA_ROWS_PER_PASS rows at a time (each entry is read
+ * and written once per pass, not once per row), then mirrored. */
 static void pca_covariance(const pca_src_t *src, size_t n, size_t d_w, double *mean, double *cov)
 {
     double tmp[MD_WAVE_LEN_MAX];
+    double dev[PCA_ROWS_PER_PASS][MD_WAVE_LEN_MAX];
     memset(mean, 0, d_w * sizeof(double));
     for (size_t i = 0u; i < n; ++i) {
         const double *x = pca_row(src, i, d_w, tmp);
@@ -43,12 +49,21 @@ static void pca_covariance(const pca_src_t *src, size_t n, size_t d_w, double *m
         mean[a] /= (double)n;
     }
     memset(cov, 0, d_w * d_w * sizeof(double));
-    for (size_t i = 0u; i < n; ++i) {
-        const double *x = pca_row(src, i, d_w, tmp);
+    for (size_t i0 = 0u; i0 < n; i0 += PCA_ROWS_PER_PASS) {
+        for (size_t r = 0u; r < PCA_ROWS_PER_PASS; ++r) { /* rows past n contribute zeros */
+            const double *x = (i0 + r < n) ? pca_row(src, i0 + r, d_w, tmp) : mean;
+            for (size_t a = 0u; a < d_w; ++a) {
+                dev[r][a] = x[a] - mean[a];
+            }
+        }
         for (size_t a = 0u; a < d_w; ++a) {
-            const double da = x[a] - mean[a];
+            const double d0 = dev[0][a];
+            const double d1 = dev[1][a];
+            const double d2 = dev[2][a];
+            const double d3 = dev[3][a];
+            double *row = &cov[a * d_w];
             for (size_t b = a; b < d_w; ++b) {
-                cov[a * d_w + b] += da * (x[b] - mean[b]);
+                row[b] += ((d0 * dev[0][b] + d1 * dev[1][b]) + d2 * dev[2][b]) + d3 * dev[3][b];
             }
         }
     }
@@ -59,6 +74,7 @@ static void pca_covariance(const pca_src_t *src, size_t n, size_t d_w, double *m
         }
     }
 }
+_Static_assert(PCA_ROWS_PER_PASS == 4u, "pca_covariance unrolls four rows");
 
 /* Flips a basis row so that its largest-magnitude component is positive.
  * Components within a relative 1e-9 of the largest count as tied and the
@@ -144,28 +160,28 @@ static md_status_t pca_fit_src(const pca_src_t *src, size_t n, size_t d_w, size_
     if (cst != MD_OK) {
         return cst;
     }
-    /* The eigen-solver's convergence test sums squared entries, which
-     * overflows above ~1e154 and underflows below ~1e-154 (it then stops
-     * at once with the diagonal). Scaling by a power of two near the
-     * largest entry is exact and keeps every square in range. */
+    /* Scaling by a power of two near the largest entry is exact and keeps
+     * the eigen-solver's squares (reflector norms, Sturm pivots) in range
+     * for data near 1e±154. */
     double cmax = 0.0;
     for (size_t i = 0u; i < d_w * d_w; ++i) {
         cmax = fmax(cmax, fabs(work->cov[i]));
     }
     int e2 = 0;
     (void)frexp(cmax, &e2);
+    const double down = ldexp(1.0, -e2); /* 2^-e2, e2 in [-974, 1024]: representable */
     for (size_t i = 0u; i < d_w * d_w; ++i) {
-        work->cov[i] = ldexp(work->cov[i], -e2);
+        work->cov[i] *= down;
     }
-    const md_status_t st = linalg_sym_eigen(work->cov, d_w, work->vals, work->vecs, PCA_JACOBI_SWEEPS);
+    const md_status_t st = linalg_sym_eigen_top(work->cov, d_w, d, work->vals, work->vecs, &work->eig);
     if (st < 0) {
         return st;
     }
-    for (size_t k = 0u; k < d_w; ++k) {
+    for (size_t k = 0u; k < d; ++k) {
         work->vals[k] = ldexp(work->vals[k], e2);
     }
-    if (!linalg_all_finite(work->vals, d_w) || !linalg_all_finite(work->vecs, d_w * d_w)) {
-        return MD_E_NUMERIC;   /* Jacobi rotations can overflow on entries near DBL_MAX */
+    if (!linalg_all_finite(work->vals, d)) {
+        return MD_E_NUMERIC;
     }
     basis->d = d;
     basis->d_w = d_w;
@@ -173,7 +189,7 @@ static md_status_t pca_fit_src(const pca_src_t *src, size_t n, size_t d_w, size_
     for (size_t k = 0u; k < d; ++k) {
         double *row = &basis->b[k * d_w];
         for (size_t j = 0u; j < d_w; ++j) {
-            row[j] = work->vecs[j * d_w + k]; /* column k of the eigenvector matrix */
+            row[j] = work->vecs[k * d_w + j];
         }
         pca_fix_sign(row, d_w);
         basis->eigval[k] = fmax(work->vals[k], 0.0);

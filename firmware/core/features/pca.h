@@ -20,10 +20,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "common/eigen_top.h"
 #include "common/md_status.h"
 #include "md_config.h"
 
-#define PCA_JACOBI_SWEEPS 30u  ///< Jacobi sweep bound (quadratic convergence: ~6-10 suffice at n = 48)
 /// Waveforms whose RMS spread sqrt(total_var / d_w) is at most this fraction
 /// of their largest magnitude are equal within rounding: the mean is a
 /// rounded sum / n, so identical windows leave deviations of up to
@@ -47,11 +47,12 @@ typedef struct {
     double mean[MD_WAVE_LEN_MAX];                      ///< sample mean waveform (informational)
 } pca_basis_t;
 
-/// Scratch storage of pca_fit (caller-owned, ~37 kB at d_w = 48).
+/// Scratch storage of pca_fit (caller-owned, ~22 kB at d_w = 48).
 typedef struct {
     double cov[MD_WAVE_LEN_MAX * MD_WAVE_LEN_MAX];
-    double vecs[MD_WAVE_LEN_MAX * MD_WAVE_LEN_MAX];
-    double vals[MD_WAVE_LEN_MAX];
+    double vecs[MD_FEAT_DIM_MAX * MD_WAVE_LEN_MAX]; ///< leading eigenvectors, one per row
+    double vals[MD_FEAT_DIM_MAX];
+    eigen_top_work_t eig;
 } pca_work_t;
 
 /// Fits the basis to n waveforms: waveform i is wave[i*stride .. i*stride+d_w).
@@ -61,8 +62,8 @@ typedef struct {
 /// zero variance included) or if total_var < PCA_VAR_MIN, MD_E_NUMERIC on non-finite input or when the
 /// mean, a covariance entry, the trace or an eigenpair is not finite
 /// (magnitudes near sqrt(DBL_MAX) overflow), MD_E_NOCONVERGE from the
-/// eigen-solver. Nothing non-finite is reported with MD_OK.
-/// O(n d_w^2 + sweeps d_w^3).
+/// eigen-solver (eigen_top.h: only the d leading pairs are computed).
+/// Nothing non-finite is reported with MD_OK. O(n d_w^2 + d_w^3).
 md_status_t pca_fit(const double *wave, size_t n, size_t stride, size_t d_w, size_t d, pca_work_t *work,
                     pca_basis_t *basis);
 
