@@ -4,6 +4,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "cluster/em.h"
 #include "cluster/em_evidence.h"
 #include "unity.h"
 
@@ -215,6 +216,50 @@ static void test_bic_and_prior_constant(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, log(6.0) - 6.0 * log(10.0), em_param_prior_log_const(2u, 3u, 10.0));
 }
 
+/* One data part at a fitted Θ̂, finished under two priors in any order, gives
+ * exactly what em_evidence_laplace gives under each (MHTC's reuse of a fit). */
+static void test_data_part_serves_several_priors(void)
+{
+    fixture_t f;
+    make_fixture(2u, 2u, 61u, &f);
+    uint8_t labels[N_PTS];
+    for (size_t i = 0u; i < N_PTS; ++i) {
+        labels[i] = (uint8_t)(i % 2u);
+    }
+    static double z[N_PTS * 3u];
+    em_options_t opt;
+    em_options_default(&opt);
+    em_fit_t fit;
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_fit(&f.data, &f.outlier, &f.prior, labels, 2u, &opt, z, &fit));
+    em_prior_t other;
+    em_target_t tg;
+    memset(&tg, 0, sizeof tg);
+    tg.mean[0] = fit.params.mean[0][0] + 0.5;
+    tg.mean[1] = fit.params.mean[0][1];
+    tg.s_cov[0] = tg.s_cov[3] = 0.4;
+    tg.p_detect = 0.9;
+    double vol = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_bounding_volume(&f.data, &vol));
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_prior_init(2u, &tg, 1u, 0.025, vol, &other));
+    double ev_a = 0.0;
+    double ev_b = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_evidence_laplace(&f.data, &f.outlier, &f.prior, &fit.params, 10.0, &ws, &ev_a));
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_evidence_laplace(&f.data, &f.outlier, &other, &fit.params, 10.0, &ws, &ev_b));
+    TEST_ASSERT_TRUE(fabs(ev_a - ev_b) > 1e-3); /* the priors matter */
+    double e = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_evidence_data(&f.data, &f.outlier, &fit.params, &ws));
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_evidence_finish(&other, &fit.params, 10.0, &ws, &e));
+    TEST_ASSERT_EQUAL_MEMORY(&ev_b, &e, sizeof e); /* bit for bit */
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_evidence_finish(&f.prior, &fit.params, 10.0, &ws, &e));
+    TEST_ASSERT_EQUAL_MEMORY(&ev_a, &e, sizeof e);
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_evidence_finish(&other, &fit.params, 10.0, &ws, &e));
+    TEST_ASSERT_EQUAL_MEMORY(&ev_b, &e, sizeof e); /* bit for bit */
+    em_params_t wrong = fit.params;
+    wrong.g = 1u;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_evidence_finish(&other, &wrong, 10.0, &ws, &e));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_evidence_finish(&other, &fit.params, 0.0, &ws, &e));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -223,5 +268,6 @@ int main(void)
     RUN_TEST(test_hessian_diagonal_matches_second_difference);
     RUN_TEST(test_theta_round_trip_and_constraint);
     RUN_TEST(test_bic_and_prior_constant);
+    RUN_TEST(test_data_part_serves_several_priors);
     return UNITY_END();
 }

@@ -14,6 +14,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "cluster/em_evidence_d2.h"
 #include "common/linalg.h"
 
 #define EM_LOG_2PI 1.8378770664093454836
@@ -473,19 +474,24 @@ static double em_add_prior(const em_prior_t *prior, const em_params_t *p, double
     return lp;
 }
 
+static bool em_data_args_ok(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
+                            const em_evidence_work_t *ws)
+{
+    return (data != NULL) && (data->y != NULL) && (outlier != NULL) && (p != NULL) && (ws != NULL) &&
+           (p->d == data->d) && (p->d >= 1u) && (p->d <= EM_D_MAX) && (p->g >= 1u) && (p->g <= EM_G_MAX) &&
+           (data->n <= EM_N_MAX) && (outlier->d == p->d) && (p->lambda > 0.0);
+}
+
 static bool em_derivs_args_ok(const em_data_t *data, const em_outlier_t *outlier,
                               const em_prior_t *prior, const em_params_t *p,
                               const em_evidence_work_t *ws)
 {
-    return (data != NULL) && (data->y != NULL) && (outlier != NULL) && (prior != NULL) &&
-           (p != NULL) && (ws != NULL) && (p->d == data->d) && (p->d >= 1u) &&
-           (p->d <= EM_D_MAX) && (p->g >= 1u) && (p->g <= EM_G_MAX) && (data->n <= EM_N_MAX) &&
-           (outlier->d == p->d) && (prior->d == p->d) && (p->lambda > 0.0);
+    return em_data_args_ok(data, outlier, p, ws) && (prior != NULL) && (prior->d == p->d);
 }
 
 /* One point's l_i, its gradient u and its Hessian terms (eq. B.17, B.18), added to grad/hess.
- * Inline with a literal d = 2 in the caller, so the d-loops unroll for the controller's case. */
-static inline double em_point_add(const em_params_t *p, size_t d, double lf0, const double *log_pi,
+ * The general-d loop (d = 2 with a Hessian takes em_d2_points). */
+static double em_point_add(const em_params_t *p, size_t d, double lf0, const double *log_pi,
                                   const double *y, double *grad, double *hess, em_evidence_work_t *ws)
 {
     const size_t eta = em_param_count(d, p->g);
@@ -503,7 +509,7 @@ static inline double em_point_add(const em_params_t *p, size_t d, double lf0, co
         for (size_t g = 0u; g < p->g; ++g) {
             em_point_curvature(p, d, &ws->comp[g], &pt[g], g, a[g], q[g], hess);
         }
-        for (size_t r = 0u; r < eta; ++r) { /* upper triangle; em_log_post_derivs mirrors it */
+        for (size_t r = 0u; r < eta; ++r) { /* upper triangle; em_data_derivs mirrors it */
             const double ur = ws->u[r];
             for (size_t c = r; c < eta; ++c) {
                 hess[r * eta + c] -= ur * ws->u[c]; /* eq. B.17 first term */
@@ -513,21 +519,20 @@ static inline double em_point_add(const em_params_t *p, size_t d, double lf0, co
     return li;
 }
 
-md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlier,
-                               const em_prior_t *prior, const em_params_t *p, double *log_post,
-                               double *grad, double *hess, em_evidence_work_t *ws)
+/* Σ_i l_i and optionally Σ_i ∇ l_i, Σ_i ∇∇ l_i (full, mirrored): the data part of eq. B.1. */
+static md_status_t em_data_derivs(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
+                                  double *log_lik, double *grad, double *hess, em_evidence_work_t *ws)
 {
-    if (!em_derivs_args_ok(data, outlier, prior, p, ws) || (log_post == NULL)) {
-        return MD_E_ARG;
-    }
     const size_t eta = em_param_count(p->d, p->g);
     for (size_t g = 0u; g < p->g; ++g) {
         if (!(p->pi[g] > 0.0) || (em_comp_prepare(p, g, &ws->comp[g]) != MD_OK)) {
             return MD_E_NUMERIC;
         }
     }
-    if (grad != NULL) {
-        memset(grad, 0, eta * sizeof(double));
+    /* the d = 2 pass always sums the gradient; ws->u is free then */
+    double *gsum = ((grad == NULL) && (hess != NULL) && (p->d == 2u)) ? ws->u : grad;
+    if (gsum != NULL) {
+        memset(gsum, 0, eta * sizeof(double));
     }
     if (hess != NULL) {
         memset(hess, 0, eta * eta * sizeof(double));
@@ -537,13 +542,16 @@ md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlie
     for (size_t g = 0u; g < p->g; ++g) {
         log_pi[g + 1u] = log(p->pi[g]);
     }
-    const bool tab = (outlier->tab_y == data->y) && (outlier->tab_n == data->n);
-    double lp = 0.0;
-    for (size_t i = 0u; i < data->n; ++i) {
-        const double *y = &data->y[i * p->d];
-        const double lf0 = tab ? outlier->tab_log_f0[i] : em_outlier_logpdf(outlier, y);
-        lp += (p->d == 2u) ? em_point_add(p, 2u, lf0, log_pi, y, grad, hess, ws)
-                           : em_point_add(p, p->d, lf0, log_pi, y, grad, hess, ws);
+    double ll = 0.0;
+    if ((p->d == 2u) && (hess != NULL)) {
+        ll = em_d2_points(data, outlier, p, log_pi, ws, gsum, hess);
+    } else {
+        const bool tab = (outlier->tab_y == data->y) && (outlier->tab_n == data->n);
+        for (size_t i = 0u; i < data->n; ++i) {
+            const double *y = &data->y[i * p->d];
+            const double lf0 = tab ? outlier->tab_log_f0[i] : em_outlier_logpdf(outlier, y);
+            ll += em_point_add(p, p->d, lf0, log_pi, y, gsum, hess, ws);
+        }
     }
     if (hess != NULL) { /* the per-point terms are symmetric: the lower triangle is the upper one */
         for (size_t r = 1u; r < eta; ++r) {
@@ -552,7 +560,26 @@ md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlie
             }
         }
     }
-    lp += em_add_prior(prior, p, grad, hess);
+    *log_lik = ll;
+    const bool ok = isfinite(ll) && ((grad == NULL) || linalg_all_finite(grad, eta)) &&
+                    ((hess == NULL) || linalg_all_finite(hess, eta * eta));
+    return ok ? MD_OK : MD_E_NUMERIC;
+}
+
+md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlier,
+                               const em_prior_t *prior, const em_params_t *p, double *log_post,
+                               double *grad, double *hess, em_evidence_work_t *ws)
+{
+    if (!em_derivs_args_ok(data, outlier, prior, p, ws) || (log_post == NULL)) {
+        return MD_E_ARG;
+    }
+    double ll = 0.0;
+    const md_status_t st = em_data_derivs(data, outlier, p, &ll, grad, hess, ws);
+    if (st != MD_OK) {
+        return st;
+    }
+    const size_t eta = em_param_count(p->d, p->g);
+    const double lp = ll + em_add_prior(prior, p, grad, hess);
     *log_post = lp;
     const bool ok = isfinite(lp) && ((grad == NULL) || linalg_all_finite(grad, eta)) &&
                     ((hess == NULL) || linalg_all_finite(hess, eta * eta));
@@ -574,8 +601,26 @@ static size_t em_old_index(size_t a, size_t ig)
     return (a < ig) ? a : a + 1u;
 }
 
+/* Entry (a, b) of the log-posterior Hessian: the data part plus, in the
+ * mean block of one cluster, ∇∇ log p(μ_g) (eq. B.21-B.23). */
+static double em_h_entry(const em_evidence_work_t *ws, size_t eta, const em_params_t *p, size_t a, size_t b)
+{
+    const size_t d = p->d;
+    const size_t blk = 1u + d + em_nc(d);
+    double v = ws->hess[a * eta + b];
+    const size_t ga = a / blk;
+    if ((a + 1u < eta) && (b + 1u < eta) && (ga == b / blk)) {
+        const size_t ia = a % blk;
+        const size_t ib = b % blk;
+        if ((ia >= 1u) && (ia <= d) && (ib >= 1u) && (ib <= d)) {
+            v += ws->prior_h[ga][(ia - 1u) * d + (ib - 1u)];
+        }
+    }
+    return v;
+}
+
 /* H' = J^T H J for θ = J q: π_G = -Σ_{g<G} π_g (+ const), other coordinates kept. */
-static double em_reduced_entry(const double *h, size_t eta, const em_params_t *p, size_t ig,
+static double em_reduced_entry(const em_evidence_work_t *ws, size_t eta, const em_params_t *p, size_t ig,
                                size_t a, size_t b)
 {
     const size_t blk = em_param_count(p->d, p->g) / p->g;
@@ -583,10 +628,10 @@ static double em_reduced_entry(const double *h, size_t eta, const em_params_t *p
     const size_t ob = em_old_index(b, ig);
     const bool pa = (oa < ig) && ((oa % blk) == 0u);
     const bool pb = (ob < ig) && ((ob % blk) == 0u);
-    double v = h[oa * eta + ob];
-    v -= pa ? h[ig * eta + ob] : 0.0;
-    v -= pb ? h[oa * eta + ig] : 0.0;
-    v += (pa && pb) ? h[ig * eta + ig] : 0.0;
+    double v = em_h_entry(ws, eta, p, oa, ob);
+    v -= pa ? em_h_entry(ws, eta, p, ig, ob) : 0.0;
+    v -= pb ? em_h_entry(ws, eta, p, oa, ig) : 0.0;
+    v += (pa && pb) ? em_h_entry(ws, eta, p, ig, ig) : 0.0;
     return v;
 }
 
@@ -598,8 +643,7 @@ static md_status_t em_neg_logdet(em_evidence_work_t *ws, size_t eta, const em_pa
     const size_t m = (ig < eta) ? eta - 1u : eta;
     double log_diag = 0.0;
     for (size_t k = 0u; k < m; ++k) {
-        const double hkk = -((ig < eta) ? em_reduced_entry(ws->hess, eta, p, ig, k, k)
-                                        : ws->hess[k * eta + k]);
+        const double hkk = -((ig < eta) ? em_reduced_entry(ws, eta, p, ig, k, k) : em_h_entry(ws, eta, p, k, k));
         if (!(hkk > 0.0)) {
             return MD_E_NUMERIC;
         }
@@ -608,8 +652,7 @@ static md_status_t em_neg_logdet(em_evidence_work_t *ws, size_t eta, const em_pa
     }
     for (size_t r = 0u; r < m; ++r) {
         for (size_t c = 0u; c < m; ++c) {
-            const double h = (ig < eta) ? em_reduced_entry(ws->hess, eta, p, ig, r, c)
-                                        : ws->hess[r * eta + c];
+            const double h = (ig < eta) ? em_reduced_entry(ws, eta, p, ig, r, c) : em_h_entry(ws, eta, p, r, c);
             ws->scaled[r * m + c] = -h * ws->u[r] * ws->u[c];
         }
     }
@@ -620,22 +663,40 @@ static md_status_t em_neg_logdet(em_evidence_work_t *ws, size_t eta, const em_pa
     return MD_OK;
 }
 
-md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outlier,
-                                const em_prior_t *prior, const em_params_t *p,
-                                double shape_prior_width, em_evidence_work_t *ws,
-                                double *log_evidence)
+md_status_t em_evidence_data(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
+                             em_evidence_work_t *ws)
 {
-    if ((log_evidence == NULL) || !(shape_prior_width > 0.0) ||
-        !em_derivs_args_ok(data, outlier, prior, p, ws)) {
+    if (!em_data_args_ok(data, outlier, p, ws)) {
         return MD_E_ARG;
     }
-    double lp = 0.0;
-    const md_status_t st = em_log_post_derivs(data, outlier, prior, p, &lp, ws->grad, ws->hess, ws);
-    if (st != MD_OK) {
-        return st;
+    ws->data_d = 0u;
+    ws->data_g = 0u;
+    const md_status_t st = em_data_derivs(data, outlier, p, &ws->data_ll, ws->grad, ws->hess, ws);
+    if (st == MD_OK) {
+        ws->data_d = p->d;
+        ws->data_g = p->g;
     }
-    /* H = -∇∇ log posterior (eq. B.1, B.4); boundary rule of em_evidence.h for π_0 */
+    return st;
+}
+
+md_status_t em_evidence_finish(const em_prior_t *prior, const em_params_t *p, double shape_prior_width,
+                               em_evidence_work_t *ws, double *log_evidence)
+{
+    if ((prior == NULL) || (p == NULL) || (ws == NULL) || (log_evidence == NULL) || !(shape_prior_width > 0.0) ||
+        (p->d == 0u) || (p->d != ws->data_d) || (p->g != ws->data_g) || (prior->d != p->d)) {
+        return MD_E_ARG;
+    }
+    double lp = ws->data_ll;
+    for (size_t g = 0u; g < p->g; ++g) {
+        double gm[EM_D_MAX];
+        lp += em_prior_derivs(prior, p->mean[g], gm, ws->prior_h[g]);
+    }
     const size_t eta = em_param_count(p->d, p->g);
+    if (!isfinite(lp) || !linalg_all_finite(&ws->prior_h[0][0], p->g * EM_D_MAX * EM_D_MAX)) {
+        return MD_E_NUMERIC;
+    }
+    /* H = -∇∇ log posterior (eq. B.1, B.4); boundary rule of em_evidence.h for π_0
+     * (the prior has no π terms, so slope and curvature are the data part's) */
     const size_t ig = (p->g - 1u) * (eta / p->g);
     const double slope = ws->grad[ig];
     const double curv = -ws->hess[ig * eta + ig];
@@ -649,6 +710,19 @@ md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outli
                     0.5 * (double)dims * EM_LOG_2PI - 0.5 * logdet_h -
                     (boundary ? log(slope) : 0.0); /* eq. 3.18 */
     return isfinite(*log_evidence) ? MD_OK : MD_E_NUMERIC;
+}
+
+md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outlier,
+                                const em_prior_t *prior, const em_params_t *p,
+                                double shape_prior_width, em_evidence_work_t *ws,
+                                double *log_evidence)
+{
+    if ((log_evidence == NULL) || !(shape_prior_width > 0.0) ||
+        !em_derivs_args_ok(data, outlier, prior, p, ws)) {
+        return MD_E_ARG;
+    }
+    const md_status_t st = em_evidence_data(data, outlier, p, ws);
+    return (st == MD_OK) ? em_evidence_finish(prior, p, shape_prior_width, ws, log_evidence) : st;
 }
 
 double em_evidence_bic(double log_lik, size_t d, size_t g, size_t n)

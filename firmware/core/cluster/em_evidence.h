@@ -55,13 +55,34 @@ typedef struct {
     double q_ts[EM_P_MAX][EM_P_MAX][EM_D_MAX * EM_D_MAX]; ///< quadratic-form part of ∂²log Φ/∂t∂s
 } em_comp_deriv_t;
 
+/// Per-cluster constants of the d = 2 pass (internal to em_evidence_d2.c;
+/// exposed for sizing): Σ⁻¹, log π_g - ½(2 log 2π + log det Σ), π_g, -½ tr(Σ⁻¹Σ_t),
+/// ½ N_t and q_ts as (r0², r0 r1, r1²) coefficients, N_t, k_ts for the six pairs s ≥ t.
+typedef struct {
+    double si[4];
+    double cst;
+    double pi;
+    double half_tr[3];
+    double half_n[3][3];
+    double n_t[3][4];
+    double k_ts[6];
+    double q_ts[6][3];
+} em_d2_comp_t;
+
 /// Caller-owned workspace of the Hessian (about 37 KB at d = 3, G = 4).
+/// Between em_evidence_data and em_evidence_finish it holds the data part.
 typedef struct {
     em_comp_deriv_t comp[EM_G_MAX];
-    double hess[EM_ETA_MAX * EM_ETA_MAX];
+    double hess[EM_ETA_MAX * EM_ETA_MAX];   ///< data part: Σ_i ∇∇ l_i (eq. B.17), full
     double scaled[EM_ETA_MAX * EM_ETA_MAX];
     double u[EM_ETA_MAX];
-    double grad[EM_ETA_MAX];
+    double grad[EM_ETA_MAX];                ///< data part: Σ_i ∇ l_i
+    double data_ll;                         ///< data part: log p(Y|Θ̂) = Σ_i l_i
+    size_t data_d;                          ///< d and G the data part was made for (0: none)
+    size_t data_g;
+    double prior_h[EM_G_MAX][EM_D_MAX * EM_D_MAX]; ///< ∇∇ log p(μ_g) of the prior being finished
+    em_d2_comp_t d2[EM_G_MAX];              ///< d = 2 pass: per-cluster constants
+    double d2_blk[EM_G_MAX][21];            ///< d = 2 pass: per-cluster curvature sums (6 × 6 upper)
 } em_evidence_work_t;
 
 /// η, the number of independent parameters of a model with g clusters in d dimensions.
@@ -91,6 +112,25 @@ md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outli
                                 const em_prior_t *prior, const em_params_t *p,
                                 double shape_prior_width, em_evidence_work_t *ws,
                                 double *log_evidence);
+
+/// The data part of the Laplace evidence at Θ̂ = p: log p(Y|Θ̂) and its
+/// gradient and Hessian (the per-point sums of eq. B.12-B.18), kept in ws
+/// for em_evidence_finish. The mean prior enters eq. 3.18 only through
+/// log p(μ̂) and the mean blocks of H (eq. B.21-B.23), so one data part
+/// serves every prior evaluated at the same Θ̂ (MHTC re-evaluates one fit
+/// under similar priors, thesis §4.6). MD_E_ARG on bad arguments,
+/// MD_E_NUMERIC if some π_g ≤ 0, a C_g is not SPD or a sum is not finite
+/// (ws then holds no data part). O(n g² d⁴).
+md_status_t em_evidence_data(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
+                             em_evidence_work_t *ws);
+
+/// Laplace log evidence (eq. 3.18) from the data part in ws (made by
+/// em_evidence_data for this p) under the mean prior `prior`; the data part
+/// is left unchanged, so the call can be repeated for other priors. Same
+/// results and statuses as em_evidence_laplace; MD_E_ARG if ws holds no data
+/// part for p's d and G. O(g J d² + η³).
+md_status_t em_evidence_finish(const em_prior_t *prior, const em_params_t *p, double shape_prior_width,
+                               em_evidence_work_t *ws, double *log_evidence);
 
 /// BIC/2 (footnote 11): log_lik - (η/2) log n.
 double em_evidence_bic(double log_lik, size_t d, size_t g, size_t n);

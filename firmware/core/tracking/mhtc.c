@@ -4,6 +4,7 @@
 #include "tracking/mhtc.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
 #include "common/linalg.h"
@@ -201,8 +202,6 @@ size_t mhtc_fill_targets(const mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
     return h->n_tracks;
 }
 
-static void mhtc_model_evidence(mhtc_state_t *st, const em_data_t *data, mhtc_workspace_t *ws, mhtc_model_t *m);
-
 /* Steps 4-6 for one model class: seeds from the targets, MAP-EM, labels, evidence P4. */
 static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws,
                            mhtc_model_t *m)
@@ -217,29 +216,61 @@ static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, m
         return;
     }
     em_labels(c->z, data->n, m->g, m->labels);
-    mhtc_model_evidence(st, data, ws, m);
+    m->usable = true; /* P4 follows for every model at once (mhtc_evidence_all) */
 }
 
-/* Step 6: evidence P4 of a fitted model under the current prior (ws->cl.prior). */
-static void mhtc_model_evidence(mhtc_state_t *st, const em_data_t *data, mhtc_workspace_t *ws, mhtc_model_t *m)
+/* BIC/2 instead of a Laplace evidence that does not exist (Hessian not PD,
+ * e.g. π_0 at its boundary), counted: the model is kept. Its scale differs
+ * from Laplace by O(η) terms: see docs/mhtc.md. */
+static void mhtc_evidence_fallback(mhtc_state_t *st, size_t n, mhtc_model_t *m)
 {
-    cluster_workspace_t *c = &ws->cl;
-    if (st->cfg.evidence == CLUSTER_EVIDENCE_BIC) {
-        m->log_ev = em_evidence_bic(m->fit.log_lik, data->d, m->g, data->n);
-        m->usable = isfinite(m->log_ev);
-        return;
-    }
-    if ((em_evidence_laplace(data, &c->outlier, &c->prior, &m->fit.params, st->cfg.shape_prior_width, &c->ev,
-                             &m->log_ev) == MD_OK) &&
-        isfinite(m->log_ev)) {
-        m->usable = true;
-        return;
-    }
-    /* No Laplace evidence (Hessian not PD, e.g. π_0 at its boundary): BIC/2 instead of losing the
-     * model, counted. Its scale differs from Laplace by O(η) terms: see docs/mhtc.md. */
     st->stats.evidence_fallbacks++;
-    m->log_ev = em_evidence_bic(m->fit.log_lik, data->d, m->g, data->n);
-    m->usable = isfinite(m->log_ev);
+    m->log_ev = em_evidence_bic(m->fit.log_lik, m->fit.params.d, m->g, n);
+}
+
+/* The mean prior of parent p (eq. 3.8-3.10) into ws->cl.prior. */
+static md_status_t mhtc_parent_prior(const mhtc_state_t *st, size_t d, double volume, mhtc_workspace_t *ws,
+                                     size_t p)
+{
+    const size_t nt = mhtc_fill_targets(st, ws, p);
+    return em_prior_init(d, ws->targets, nt, st->cfg.lambda_new + st->cfg.lambda_false, volume, &ws->cl.prior);
+}
+
+/* Step 6 for every model that evaluates the fit of slot s: one data part of
+ * the Laplace Hessian at that Θ̂, finished under each model's parent prior
+ * (the prior enters eq. 3.18 only through log p(μ̂) and the mean blocks). */
+static void mhtc_evidence_of_fit(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws,
+                                 size_t s)
+{
+    em_evidence_work_t *ev = &ws->cl.ev;
+    const bool have_data = (em_evidence_data(data, &ws->cl.outlier, &ws->model[s].fit.params, ev) == MD_OK);
+    for (size_t t = s; t < ws->n_models; ++t) {
+        mhtc_model_t *m = &ws->model[t];
+        if (m->ev_src != s) {
+            continue;
+        }
+        if (!have_data || (mhtc_parent_prior(st, data->d, volume, ws, m->parent) != MD_OK) ||
+            (em_evidence_finish(&ws->cl.prior, &m->fit.params, st->cfg.shape_prior_width, ev, &m->log_ev) !=
+             MD_OK) ||
+            !isfinite(m->log_ev)) {
+            mhtc_evidence_fallback(st, data->n, m);
+        }
+    }
+}
+
+/* Step 6, P4 of every model hypothesis of the interval (BIC or Laplace). */
+static void mhtc_evidence_all(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws)
+{
+    for (size_t s = 0u; s < ws->n_models; ++s) {
+        mhtc_model_t *m = &ws->model[s];
+        if (st->cfg.evidence == CLUSTER_EVIDENCE_BIC) {
+            m->log_ev = em_evidence_bic(m->fit.log_lik, data->d, m->g, data->n);
+        } else if (m->ev_src == s) {
+            mhtc_evidence_of_fit(st, data, volume, ws, s);
+        } else {
+            /* evaluated with its source fit, which has a lower slot */
+        }
+    }
 }
 
 /* Step 7: A* of eq. 4.25 from ζ (eq. 4.26) and the L best assignments. */
@@ -289,40 +320,38 @@ size_t mhtc_empty_model(mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
 }
 
 /* A fitted model of a parent with a similar prior, re-evaluated under parent p's prior
- * (ws->cl.prior): ζ (eq. 3.14) and log-posterior (eq. 3.4) at the shared Θ̂, then P4. The
- * parameters stay the donor's MAP estimate (thesis §4.6: one clustering for similar priors). */
-static bool mhtc_reuse_model(mhtc_state_t *st, const em_data_t *data, mhtc_workspace_t *ws,
-                             const mhtc_model_t *donor, mhtc_model_t *m)
+ * (ws->cl.prior): ζ (eq. 3.14) and log-posterior (eq. 3.4) at the shared Θ̂; P4 follows in
+ * mhtc_evidence_all. The parameters stay the donor's MAP estimate (thesis §4.6: one
+ * clustering for similar priors). */
+static bool mhtc_reuse_model(mhtc_state_t *st, mhtc_workspace_t *ws, size_t donor_slot, mhtc_model_t *m)
 {
     const uint8_t parent = m->parent;
     const double lp3 = m->log_p3;
-    *m = *donor;
+    *m = ws->model[donor_slot];
     m->parent = parent;
     m->log_p3 = lp3;
-    m->usable = false;
+    m->ev_src = (uint8_t)donor_slot;
     memset(m->fit.zeta, 0, sizeof m->fit.zeta);
     double lp = m->fit.log_lik;
     for (size_t g = 0u; g < m->g; ++g) {
         lp += em_prior_log_mean(&ws->cl.prior, m->fit.params.mean[g], m->fit.zeta[g]);
     }
-    if (!isfinite(lp)) {
-        return false;
-    }
     m->fit.log_post = lp;
-    mhtc_model_evidence(st, data, ws, m);
     st->stats.models_reused++;
-    return m->usable;
+    return isfinite(lp);
 }
 
-/* Donor model of class g among slots [first, first + count), or NULL. */
-static const mhtc_model_t *mhtc_donor(const mhtc_workspace_t *ws, size_t first, size_t count, size_t g)
+#define MHTC_NO_SLOT SIZE_MAX
+
+/* Slot of the donor model of class g among slots [first, first + count), or MHTC_NO_SLOT. */
+static size_t mhtc_donor(const mhtc_workspace_t *ws, size_t first, size_t count, size_t g)
 {
     for (size_t m = first; (m < first + count) && (m < sizeof ws->model / sizeof ws->model[0]); ++m) {
         if (ws->model[m].g == g) {
-            return &ws->model[m];
+            return m;
         }
     }
-    return NULL;
+    return MHTC_NO_SLOT;
 }
 
 /* Steps 2-7 for parent p: P3 pruning (eq. 4.11), prior (eq. 4.12), fits, associations.
@@ -351,9 +380,10 @@ static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double v
         m->g = (uint8_t)g;
         m->parent = (uint8_t)p;
         m->log_p3 = lp3;
-        const mhtc_model_t *donor = mhtc_donor(ws, donor_first, donor_count, g);
-        if (donor != NULL) {
-            m->usable = mhtc_reuse_model(st, data, ws, donor, m);
+        m->ev_src = (uint8_t)ws->n_models;
+        const size_t donor = mhtc_donor(ws, donor_first, donor_count, g);
+        if (donor != MHTC_NO_SLOT) {
+            m->usable = mhtc_reuse_model(st, ws, donor, m);
         } else {
             mhtc_fit_model(st, data, nt, ws, m);
         }
@@ -514,6 +544,7 @@ static md_status_t mhtc_run_mhtc(mhtc_state_t *st, const mhtc_input_t *in, mhtc_
                          (em_outlier_tabulate(&ws->cl.outlier, &data) == MD_OK);
     if (data_ok) {
         mhtc_expand_all(st, &data, volume, ws, parents);
+        mhtc_evidence_all(st, &data, volume, ws);
     }
     if (ws->n_models == 0u) {
         st->stats.empty_intervals++; /* nothing clusterable: every parent continues with all tracks missed */

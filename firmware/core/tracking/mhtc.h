@@ -198,6 +198,7 @@ typedef struct {
     uint8_t parent;              ///< parent hypothesis index (0 for the root)
     uint8_t g;
     bool usable;
+    uint8_t ev_src;              ///< slot of the model that ran the EM fit evaluated here (itself, or its donor)
     uint8_t labels[EM_N_MAX];    ///< argmax_g z_ig, 0 = outlier
 } mhtc_model_t;
 
