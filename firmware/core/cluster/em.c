@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "common/linalg.h"
+#include "common/md_exp.h"
 
 #define EM_PI0_INIT 0.05   /* initial outlier weight of a seed */
 #define EM_LOG_TINY (-700.0) /* log of a weight that is numerically zero */
@@ -20,6 +21,9 @@ typedef struct {
 } em_cache_t;
 
 #define EM_LOG_2PI 1.8378770664093454836
+#define EM_LN2 0.69314718055994530942
+#define EM_LOG_BATCH 64u /* points per log of the E-step's product of normalisers */
+_Static_assert(EM_G_MAX <= 8u, "EM_LOG_BATCH products of G + 1 <= 9 stay below 2^203");
 
 /* L^{-1} of a lower-triangular L with positive diagonal (column by column forward substitution). */
 static void em_tri_inverse(const double *l, size_t d, double *li)
@@ -115,11 +119,12 @@ typedef struct {
     double sum[EM_G_MAX][EM_D_MAX];
 } em_moments_t;
 
-/* One point of the E-step: z_i· from the log-weights, its moments; returns log p(y_i|Θ).
+/* One point of the E-step: z_i· from the log-weights, its moments; returns the largest
+ * log-term hi and sets *sum so that log p(y_i|Θ) = hi + log(*sum), *sum in [1, G + 1].
  * Inline with a literal d = 2 below, so the d-loops unroll for the controller's case. */
 static inline double em_estep_point(const double *y, size_t d, double lf0, const double *log_pi,
                                     const em_params_t *p, const em_cache_t *c, double *zi,
-                                    em_moments_t *mom)
+                                    em_moments_t *mom, double *sum_out)
 {
     const size_t k = p->g + 1u;
     zi[0] = log_pi[0] + lf0;
@@ -131,7 +136,7 @@ static inline double em_estep_point(const double *y, size_t d, double lf0, const
     }
     double sum = 0.0;
     for (size_t g = 0u; g < k; ++g) {
-        zi[g] = exp(zi[g] - hi); /* the largest term is exactly 1: sum >= 1 */
+        zi[g] = md_exp(zi[g] - hi); /* the largest term is exactly 1: sum >= 1 */
         sum += zi[g];
     }
     const double inv = 1.0 / sum;
@@ -144,7 +149,8 @@ static inline double em_estep_point(const double *y, size_t d, double lf0, const
             mom->sum[g - 1u][j] += zi[g] * y[j];
         }
     }
-    return hi + log(sum);
+    *sum_out = sum;
+    return hi;
 }
 
 static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
@@ -158,14 +164,25 @@ static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const
         log_pi[g + 1u] = em_safe_log(p->pi[g]);
     }
     const bool tab = (outlier->tab_y == data->y) && (outlier->tab_n == data->n);
-    double loglik = 0.0;
+    /* eq. 3.5 as Σ_i hi_i + log Π_i sum_i: one log per call, the product
+     * renormalised by frexp every EM_LOG_BATCH points (sum_i ≤ G + 1 ≤ 9) */
+    double hi_sum = 0.0;
+    double prod = 1.0;
+    int prod_exp = 0;
     for (size_t i = 0u; i < data->n; ++i) {
         const double *y = &data->y[i * data->d];
         const double lf0 = tab ? outlier->tab_log_f0[i] : em_outlier_logpdf(outlier, y);
-        loglik += (data->d == 2u) ? em_estep_point(y, 2u, lf0, log_pi, p, c, &z[i * k], mom)
-                                  : em_estep_point(y, data->d, lf0, log_pi, p, c, &z[i * k], mom);
+        double sum = 1.0;
+        hi_sum += (data->d == 2u) ? em_estep_point(y, 2u, lf0, log_pi, p, c, &z[i * k], mom, &sum)
+                                  : em_estep_point(y, data->d, lf0, log_pi, p, c, &z[i * k], mom, &sum);
+        prod *= sum;
+        if ((i % EM_LOG_BATCH) == (EM_LOG_BATCH - 1u)) {
+            int e = 0;
+            prod = frexp(prod, &e);
+            prod_exp += e;
+        }
     }
-    return loglik;
+    return hi_sum + (log(prod) + (double)prod_exp * EM_LN2);
 }
 
 /* eq. 3.15: MAP mean with Σ_g^{-1} of the previous iteration (Remark 3.6). */
@@ -349,11 +366,10 @@ static em_reason_t em_init_params(const em_data_t *data, const uint8_t *labels, 
 }
 
 static bool em_fit_args_ok(const em_data_t *data, const em_outlier_t *outlier,
-                           const em_prior_t *prior, const uint8_t *seed_labels, size_t g,
-                           const em_options_t *opt, const double *z)
+                           const em_prior_t *prior, size_t g, const em_options_t *opt, const double *z)
 {
     return (data != NULL) && (data->y != NULL) && (outlier != NULL) && (prior != NULL) &&
-           (seed_labels != NULL) && (opt != NULL) && (z != NULL) && (data->d >= 1u) &&
+           (opt != NULL) && (z != NULL) && (data->d >= 1u) &&
            (data->d <= EM_D_MAX) && (data->n <= EM_N_MAX) && (g >= 1u) && (g <= EM_G_MAX) &&
            (outlier->d == data->d) && (prior->d == data->d) && (opt->max_iter >= 1u) &&
            (opt->max_iter <= MD_EM_MAX_ITER) && (opt->tol > 0.0) &&
@@ -586,23 +602,13 @@ static bool em_squarem_cycle(const em_data_t *data, const em_outlier_t *outlier,
     return true;
 }
 
-md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
-                   const uint8_t *seed_labels, size_t g, const em_options_t *opt, double *z,
-                   em_fit_t *out)
+/* EM (SQUAREM-accelerated) from the Θ in out->params to convergence or the bound; r is
+ * the outcome of the initialisation. */
+static md_status_t em_run(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                          const em_options_t *opt, double *z, em_reason_t r, em_fit_t *out)
 {
-    if (out == NULL) {
-        return MD_E_ARG;
-    }
-    memset(out, 0, sizeof *out);
-    if (!em_fit_args_ok(data, outlier, prior, seed_labels, g, opt, z)) {
-        return em_fail(out, MD_E_ARG, EM_FAIL_ARG);
-    }
-    if ((double)data->n < (double)g * EM_MIN_POINTS_PER_CLUSTER(data->d)) {
-        return em_fail(out, MD_E_DEGENERATE, EM_FAIL_TOO_FEW_POINTS);
-    }
     em_run_t s;
     memset(&s, 0, sizeof s);
-    em_reason_t r = em_init_params(data, seed_labels, g, &out->params);
     if ((r == EM_OK) && !em_evaluate(data, outlier, prior, &out->params, &s.cache, z, &s.mom, out)) {
         r = EM_FAIL_NUMERIC;
     }
@@ -615,12 +621,69 @@ md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_
         }
     }
     if (r != EM_OK) {
-        const md_status_t st = (r == EM_FAIL_NUMERIC) ? MD_E_NUMERIC
-                               : (r == EM_FAIL_ARG)   ? MD_E_ARG
-                                                      : MD_E_DEGENERATE;
+        md_status_t st = MD_E_DEGENERATE;
+        if (r == EM_FAIL_NUMERIC) {
+            st = MD_E_NUMERIC;
+        } else if (r == EM_FAIL_ARG) {
+            st = MD_E_ARG;
+        } else {
+            /* every other reason is a degenerate data set or seed */
+        }
         return em_fail(out, st, r);
     }
     return em_finish(&s.mom, s.converged, out);
+}
+
+md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                   const uint8_t *seed_labels, size_t g, const em_options_t *opt, double *z,
+                   em_fit_t *out)
+{
+    if (out == NULL) {
+        return MD_E_ARG;
+    }
+    memset(out, 0, sizeof *out);
+    if ((seed_labels == NULL) || !em_fit_args_ok(data, outlier, prior, g, opt, z)) {
+        return em_fail(out, MD_E_ARG, EM_FAIL_ARG);
+    }
+    if ((double)data->n < (double)g * EM_MIN_POINTS_PER_CLUSTER(data->d)) {
+        return em_fail(out, MD_E_DEGENERATE, EM_FAIL_TOO_FEW_POINTS);
+    }
+    const em_reason_t r = em_init_params(data, seed_labels, g, &out->params);
+    return em_run(data, outlier, prior, opt, z, r, out);
+}
+
+/* A starting Θ that the iteration can take: finite, π in range, λ > 0. */
+static bool em_start_ok(const em_params_t *p, size_t d)
+{
+    if ((p->d != d) || (p->g < 1u) || (p->g > EM_G_MAX) || !(p->lambda > 0.0) || !isfinite(p->lambda) ||
+        !(p->pi0 >= 0.0) || !(p->pi0 <= 1.0)) {
+        return false;
+    }
+    for (size_t g = 0u; g < p->g; ++g) {
+        if (!(p->pi[g] > 0.0) || !(p->pi[g] <= 1.0) || !linalg_all_finite(p->mean[g], d) ||
+            !linalg_all_finite(p->shape[g], d * d)) {
+            return false;
+        }
+    }
+    return true;
+}
+
+md_status_t em_fit_from(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                        const em_params_t *start, const em_options_t *opt, double *z, em_fit_t *out)
+{
+    if (out == NULL) {
+        return MD_E_ARG;
+    }
+    memset(out, 0, sizeof *out);
+    if ((start == NULL) || (data == NULL) || !em_start_ok(start, data->d) ||
+        !em_fit_args_ok(data, outlier, prior, start->g, opt, z)) {
+        return em_fail(out, MD_E_ARG, EM_FAIL_ARG);
+    }
+    if ((double)data->n < (double)start->g * EM_MIN_POINTS_PER_CLUSTER(data->d)) {
+        return em_fail(out, MD_E_DEGENERATE, EM_FAIL_TOO_FEW_POINTS);
+    }
+    out->params = *start;
+    return em_run(data, outlier, prior, opt, z, EM_OK, out);
 }
 
 void em_labels(const double *z, size_t n, size_t g, uint8_t *label)

@@ -63,6 +63,16 @@ md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_
                    const uint8_t *seed_labels, size_t g, const em_options_t *opt, double *z,
                    em_fit_t *out);
 
+/// The same iteration as em_fit, started from a given Θ instead of a hard
+/// partition: a converged fit of the same model class under a similar prior
+/// (MHTC's warm start, docs/mhtc.md) reaches this prior's MAP optimum in a
+/// few steps. The start must have start->d == data->d, 1 ≤ start->g ≤
+/// EM_G_MAX, finite means and shapes, 0 < π_g ≤ 1, 0 ≤ π_0 ≤ 1, λ > 0
+/// (else MD_E_ARG); a shape that is not SPD fails as MD_E_NUMERIC. z and the
+/// other arguments as for em_fit (z holds n·(start->g + 1) doubles).
+md_status_t em_fit_from(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                        const em_params_t *start, const em_options_t *opt, double *z, em_fit_t *out);
+
 /// Hard labels from responsibilities: label[i] = argmax_g z_ig (0 = outlier).
 void em_labels(const double *z, size_t n, size_t g, uint8_t *label);
 

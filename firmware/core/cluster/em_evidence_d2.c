@@ -9,11 +9,16 @@
 #include <math.h>
 #include <string.h>
 
+#include "common/md_exp.h"
+
 #define D2_SLOTS 6u
 #define D2_UPPER 21u /* entries of a 6 × 6 upper triangle */
 #define D2_NP 3u     /* covariance parameters: c_11, c_12, λ */
 #define D2_PAIRS 6u  /* (t, s), s ≥ t, of the covariance parameters */
 #define D2_LOG_2PI 1.8378770664093454836
+#define D2_LN2 0.69314718055994530942
+#define D2_OUTER_BATCH 4u /* point gradients folded into H per pass over it */
+#define D2_LOG_BATCH 64u /* points per renormalisation of the product of normalisers (each ≤ G + 1 ≤ 9) */
 
 _Static_assert(EM_D_MAX >= 2u, "the d = 2 pass needs room for 2-D points");
 
@@ -106,9 +111,10 @@ static void d2_curvature(const em_d2_comp_t *k, const d2_point_t *pt, double a, 
     }
 }
 
-/* One point: l_i, u_i into u (length eta), curvature into the blocks. */
+/* One point: u_i into u (length eta), curvature into the blocks; returns the largest
+ * log-term hi, and *sum_out such that l_i = hi + log(*sum_out). */
 static double d2_one_point(const em_params_t *p, const em_d2_comp_t *k, const double *y, double lf0,
-                           double log_pi0, double *u, double blk[][D2_UPPER])
+                           double log_pi0, double *u, double blk[][D2_UPPER], double *sum_out)
 {
     const size_t eta = 5u * p->g + 1u;
     d2_point_t pt[EM_G_MAX];
@@ -118,13 +124,13 @@ static double d2_one_point(const em_params_t *p, const em_d2_comp_t *k, const do
         hi = (pt[g].w > hi) ? pt[g].w : hi;
     }
     double e[EM_G_MAX];
-    double sum = exp(log_pi0 + lf0 - hi); /* one log-sum-exp about the largest term */
+    double sum = md_exp(log_pi0 + lf0 - hi); /* one log-sum-exp about the largest term */
     for (size_t g = 0u; g < p->g; ++g) {
-        e[g] = exp(pt[g].w - hi);
+        e[g] = md_exp(pt[g].w - hi);
         sum += e[g];
     }
-    const double lp = hi + log(sum);
-    const double b = exp(lf0 - lp); /* f0/P; π_0 may be 0 */
+    *sum_out = sum;
+    const double b = md_exp(lf0 - hi) / sum; /* f0/P; π_0 may be 0 */
     u[eta - 1u] = 0.0;
     for (size_t g = 0u; g < p->g; ++g) {
         const double a = e[g] / (sum * k[g].pi);
@@ -138,7 +144,7 @@ static double d2_one_point(const em_params_t *p, const em_d2_comp_t *k, const do
         u[eta - 1u] += q * pt[g].dt[2];
         d2_curvature(&k[g], &pt[g], a, q, blk[g]);
     }
-    return lp;
+    return hi;
 }
 
 /* H (upper) += Σ of the cluster blocks: slot i < 5 is parameter 5g + i, slot 5 is λ. */
@@ -156,29 +162,52 @@ static void d2_scatter(size_t g_count, double blk[][D2_UPPER], double *hess)
     }
 }
 
+/* H (upper) -= Σ_k u_k u_kᵀ and grad += Σ_k u_k over D2_OUTER_BATCH gradients (rows of u,
+ * unused rows zero): each entry of H is read and written once per batch, not per point. */
+static void d2_outer(size_t eta, double u[][EM_ETA_MAX], double *grad, double *hess)
+{
+    for (size_t r = 0u; r < eta; ++r) {
+        const double u0 = u[0][r];
+        const double u1 = u[1][r];
+        const double u2 = u[2][r];
+        const double u3 = u[3][r];
+        double *row = &hess[r * eta];
+        grad[r] += ((u0 + u1) + u2) + u3;
+        for (size_t c = r; c < eta; ++c) {
+            row[c] -= ((u0 * u[0][c] + u1 * u[1][c]) + u2 * u[2][c]) + u3 * u[3][c]; /* eq. B.17 first term */
+        }
+    }
+}
+_Static_assert(D2_OUTER_BATCH == 4u, "d2_outer folds four gradients");
+
 double em_d2_points(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
                     const double *log_pi, em_evidence_work_t *ws, double *grad, double *hess)
 {
     const size_t eta = 5u * p->g + 1u;
-    double u[EM_ETA_MAX];
+    double u[D2_OUTER_BATCH][EM_ETA_MAX];
     memset(u, 0, sizeof u);
     memset(ws->d2_blk, 0, sizeof ws->d2_blk);
     d2_prepare(p, ws->comp, log_pi, ws->d2);
     const bool tab = (outlier->tab_y == data->y) && (outlier->tab_n == data->n);
-    double ll = 0.0;
+    double hi_sum = 0.0; /* Σ_i l_i = Σ_i hi_i + log Π_i sum_i, renormalised as in em.c */
+    double prod = 1.0;
+    int prod_exp = 0;
     for (size_t i = 0u; i < data->n; ++i) {
         const double *y = &data->y[2u * i];
         const double lf0 = tab ? outlier->tab_log_f0[i] : em_outlier_logpdf(outlier, y);
-        ll += d2_one_point(p, ws->d2, y, lf0, log_pi[0], u, ws->d2_blk);
-        for (size_t r = 0u; r < eta; ++r) {
-            const double ur = u[r];
-            double *row = &hess[r * eta];
-            grad[r] += ur;
-            for (size_t c = r; c < eta; ++c) {
-                row[c] -= ur * u[c]; /* eq. B.17 first term */
-            }
+        double sum = 1.0;
+        hi_sum += d2_one_point(p, ws->d2, y, lf0, log_pi[0], u[i % D2_OUTER_BATCH], ws->d2_blk, &sum);
+        prod *= sum;
+        if ((i % D2_LOG_BATCH) == (D2_LOG_BATCH - 1u)) {
+            int e = 0;
+            prod = frexp(prod, &e);
+            prod_exp += e;
+        }
+        if (((i % D2_OUTER_BATCH) == (D2_OUTER_BATCH - 1u)) || (i + 1u == data->n)) {
+            d2_outer(eta, u, grad, hess);
+            memset(u, 0, sizeof u);
         }
     }
     d2_scatter(p->g, ws->d2_blk, hess);
-    return ll;
+    return hi_sum + (log(prod) + (double)prod_exp * D2_LN2);
 }

@@ -10,6 +10,7 @@
 #include "common/linalg.h"
 #include "tracking/mhtc_internal.h"
 
+#define MHTC_NO_SLOT SIZE_MAX /* no model slot */
 #define MHTC_COV_REG 1e-3 /* ridge (relative to the mean eigenvalue) on a Σ_j mapped into a new basis */
 
 static const mhtc_hyp_t g_root = {0}; /* the empty parent of the first interval */
@@ -40,6 +41,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->nn_gate_sigma = 2.0;
     cfg->gnn_gate_chi2 = 9.21;
     cfg->share_jeffreys = MHTC_SHARE_JEFFREYS_DEFAULT;
+    cfg->warm_start = true;
 }
 
 md_status_t mhtc_config_check(const mhtc_config_t *c)
@@ -202,16 +204,37 @@ size_t mhtc_fill_targets(const mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
     return h->n_tracks;
 }
 
-/* Steps 4-6 for one model class: seeds from the targets, MAP-EM, labels, evidence P4. */
+/* A fitted model of class g of an earlier parent with nt tracks (the first, i.e. the most
+ * probable parent's), or MHTC_NO_SLOT. */
+static size_t mhtc_warm_donor(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t g, size_t nt)
+{
+    for (size_t q = 0u; (q < ws->n_models) && (q < sizeof ws->model / sizeof ws->model[0]); ++q) {
+        if ((ws->model[q].g == g) && (mhtc_parent(st, ws->model[q].parent)->n_tracks == nt)) {
+            return q;
+        }
+    }
+    return MHTC_NO_SLOT;
+}
+
+/* Steps 4-5 for one model class: MAP-EM under this parent's prior (ws->cl.prior), started
+ * from a warm donor's Θ̂ when there is one, else from the targets' seeds (§3.3.4); labels. */
 static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws,
                            mhtc_model_t *m)
 {
     cluster_workspace_t *c = &ws->cl;
     m->usable = false;
-    if (em_seed_from_targets(data, ws->targets, nt, m->g, &c->seed_ws, c->seed) != MD_OK) {
-        return;
+    const size_t warm = st->cfg.warm_start ? mhtc_warm_donor(st, ws, m->g, nt) : MHTC_NO_SLOT;
+    md_status_t fs = MD_E_ARG;
+    if (warm != MHTC_NO_SLOT) {
+        fs = em_fit_from(data, &c->outlier, &c->prior, &ws->model[warm].fit.params, &st->cfg.em, c->z, &m->fit);
+        st->stats.models_warm++;
     }
-    const md_status_t fs = em_fit(data, &c->outlier, &c->prior, c->seed, m->g, &st->cfg.em, c->z, &m->fit);
+    if ((fs != MD_OK) && (fs != MD_E_NOCONVERGE)) {
+        if (em_seed_from_targets(data, ws->targets, nt, m->g, &c->seed_ws, c->seed) != MD_OK) {
+            return;
+        }
+        fs = em_fit(data, &c->outlier, &c->prior, c->seed, m->g, &st->cfg.em, c->z, &m->fit);
+    }
     if ((fs != MD_OK) && (fs != MD_E_NOCONVERGE)) {
         return;
     }
@@ -340,8 +363,6 @@ static bool mhtc_reuse_model(mhtc_state_t *st, mhtc_workspace_t *ws, size_t dono
     st->stats.models_reused++;
     return isfinite(lp);
 }
-
-#define MHTC_NO_SLOT SIZE_MAX
 
 /* Slot of the donor model of class g among slots [first, first + count), or MHTC_NO_SLOT. */
 static size_t mhtc_donor(const mhtc_workspace_t *ws, size_t first, size_t count, size_t g)

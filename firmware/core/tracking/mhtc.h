@@ -102,6 +102,10 @@ typedef struct {
                                  ///< MHTC_SHARE_PD) reuses that parent's EM fits, re-evaluated under its
                                  ///< own prior (ζ, log-posterior, evidence, associations); 0 = exact
                                  ///< sharing only (MHTC_SHARE_JEFFREYS_DEFAULT)
+    bool warm_start;             ///< a parent's model class G that is fitted starts EM from an earlier
+                                 ///< parent's fit of class G with as many tracks (then converges under
+                                 ///< its own prior), not from the §3.3.4 seeds; seeds if none or if that
+                                 ///< fit fails (default true, docs/mhtc.md)
 } mhtc_config_t;
 
 /// One track record (shared by every hypothesis that references it).
@@ -152,6 +156,7 @@ typedef struct {
     uint32_t murty_solves;     ///< LAP solves inside Murty (benchmark figure)
     uint32_t models_shared;    ///< model hypotheses copied from a parent with the same track records (no EM)
     uint32_t models_reused;    ///< model hypotheses reusing a similar parent's EM fit (share_jeffreys)
+    uint32_t models_warm;      ///< EM fits started from another parent's fit (warm_start)
 } mhtc_stats_t;
 
 /// Tracker state of one electrode (persistent between intervals).
