@@ -356,6 +356,56 @@ static void test_squarem_log_post_monotone(void)
     }
 }
 
+/* em_fit_from: from another prior's optimum it reaches this prior's optimum (the
+ * one a seeded fit finds), in fewer steps; bad starting points are refused. */
+static void test_fit_from_converges_to_the_same_optimum(void)
+{
+    setup_t s;
+    em_options_t opt;
+    em_fit_t seeded;
+    em_fit_t donor;
+    em_fit_t warm;
+    em_target_t tg;
+    memset(&tg, 0, sizeof tg);
+    tg.mean[0] = -3.0;
+    tg.mean[1] = 3.4;
+    tg.s_cov[0] = tg.s_cov[3] = 0.2;
+    tg.p_detect = 0.9;
+    em_options_default(&opt);
+    opt.tol = 1e-12;
+    prepare(make_two(3u), NULL, 0u, &s); /* donor: uniform prior */
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_fit(&s.data, &s.outlier, &s.prior, seed, 2u, &opt, z, &donor));
+    prepare(make_two(3u), &tg, 1u, &s); /* this prior pulls cluster 1 towards (-3, 3.4) */
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_fit(&s.data, &s.outlier, &s.prior, seed, 2u, &opt, z, &seeded));
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_fit_from(&s.data, &s.outlier, &s.prior, &donor.params, &opt, z, &warm));
+    TEST_ASSERT_TRUE(fabs(donor.params.mean[0][0] - seeded.params.mean[0][0]) > 1e-3); /* the priors differ */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-8 * fabs(seeded.log_post), seeded.log_post, warm.log_post);
+    for (size_t g = 0u; g < 2u; ++g) {
+        for (size_t j = 0u; j < 2u; ++j) {
+            TEST_ASSERT_DOUBLE_WITHIN(1e-5, seeded.params.mean[g][j], warm.params.mean[g][j]);
+        }
+    }
+    TEST_ASSERT_TRUE(warm.iterations < seeded.iterations);
+
+    em_params_t bad = donor.params;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_fit_from(&s.data, &s.outlier, &s.prior, NULL, &opt, z, &warm));
+    bad.pi[1] = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_fit_from(&s.data, &s.outlier, &s.prior, &bad, &opt, z, &warm));
+    bad = donor.params;
+    bad.lambda = -1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_fit_from(&s.data, &s.outlier, &s.prior, &bad, &opt, z, &warm));
+    bad = donor.params;
+    bad.mean[0][1] = NAN;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_fit_from(&s.data, &s.outlier, &s.prior, &bad, &opt, z, &warm));
+    bad = donor.params;
+    bad.d = 3u;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_fit_from(&s.data, &s.outlier, &s.prior, &bad, &opt, z, &warm));
+    TEST_ASSERT_EQUAL_INT(EM_FAIL_ARG, warm.reason);
+    bad = donor.params;
+    bad.shape[0][0] = -1.0; /* not positive definite */
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, em_fit_from(&s.data, &s.outlier, &s.prior, &bad, &opt, z, &warm));
+}
+
 static void test_labels_argmax(void)
 {
     const double zz[6] = {0.1, 0.7, 0.2, 0.6, 0.3, 0.1};
@@ -376,6 +426,7 @@ int main(void)
     RUN_TEST(test_squarem_same_optimum_as_plain_em);
     RUN_TEST(test_squarem_fewer_iterations_on_overlap);
     RUN_TEST(test_squarem_log_post_monotone);
+    RUN_TEST(test_fit_from_converges_to_the_same_optimum);
     RUN_TEST(test_labels_argmax);
     return UNITY_END();
 }

@@ -352,6 +352,36 @@ static void test_similar_priors_reuse_fits(void)
     TEST_ASSERT_EQUAL_MEMORY(g_labels_ref, g_out.labels, sizeof g_labels_ref);
 }
 
+/* Warm start (docs/mhtc.md): later parents' fits start from an earlier parent's
+ * fit of the same class. On the scripted run it must be used and leave the
+ * leading tracks and labels as fitting every parent from its own seeds. */
+static void run_two_neurons_warm(bool warm, uint64_t seed)
+{
+    start(MHTC_TRACKER_MHTC, seed);
+    g_st.cfg.share_jeffreys = 0.0; /* every parent fits: the warm start is what differs */
+    g_st.cfg.warm_start = warm;
+    for (int k = 0; k < 5; ++k) {
+        interval_with(true, k != 2, false);
+    }
+}
+
+static void test_warm_start_same_leading_hypothesis(void)
+{
+    run_two_neurons_warm(false, 11u);
+    TEST_ASSERT_EQUAL_UINT32(0u, g_st.stats.models_warm);
+    const mhtc_result_t ref = g_out;
+    memcpy(g_labels_ref, g_out.labels, sizeof g_labels_ref);
+    run_two_neurons_warm(true, 11u);
+    TEST_ASSERT_GREATER_THAN_UINT(0u, g_st.stats.models_warm);
+    TEST_ASSERT_EQUAL_size_t(ref.n_tracks, g_out.n_tracks);
+    for (size_t j = 0u; j < ref.n_tracks; ++j) {
+        TEST_ASSERT_EQUAL_UINT32(ref.track[j].id, g_out.track[j].id);
+    }
+    TEST_ASSERT_EQUAL_size_t(ref.g, g_out.g);
+    TEST_ASSERT_EQUAL_MEMORY(g_labels_ref, g_out.labels, sizeof g_labels_ref);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, ref.log_p4, g_out.log_p4);
+}
+
 static void test_empty_interval_and_bad_input(void)
 {
     start(MHTC_TRACKER_MHTC, 5u);
@@ -483,6 +513,7 @@ int main(void)
     RUN_TEST(test_ids_monotonic_and_pool_shared);
     RUN_TEST(test_identical_priors_fitted_once);
     RUN_TEST(test_similar_priors_reuse_fits);
+    RUN_TEST(test_warm_start_same_leading_hypothesis);
     RUN_TEST(test_empty_interval_and_bad_input);
     RUN_TEST(test_baselines_run_and_nn_loses_silent_neuron);
     RUN_TEST(test_int16_input_equals_double_input);
