@@ -220,6 +220,30 @@ static void test_reads_lower_triangle_only(void)
     check_pairs(n, 2, vals, vecs, 20.0);
 }
 
+/* Columns whose entries below the diagonal are ~1e-158: their squares fall into
+ * the subnormal range. A rank-1 matrix plus rounding-level noise, as PCA gets
+ * from identical-but-one windows (fuzz_pca): the zero cluster's vectors must
+ * still be orthonormal. */
+static void test_tiny_columns_keep_reflectors_orthogonal(void)
+{
+    const size_t n = 16;
+    double v[NMAX];
+    for (size_t i = 0; i < n; ++i) {
+        v[i] = (i % 3u == 0u) ? 1.0 : 1e-158 * (double)(i + 1u);
+    }
+    for (size_t r = 0; r < n; ++r) {
+        for (size_t c = 0; c < n; ++c) {
+            g_a[r * n + c] = v[r] * v[c] + ((r == c) ? 1e-300 * (double)(r + 1u) : 0.0);
+        }
+    }
+    memcpy(g_copy, g_a, n * n * sizeof g_a[0]);
+    double vals[3];
+    double vecs[3 * NMAX];
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_sym_eigen_top(g_a, n, 3, vals, vecs, &g_ws));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-14 * 6.0, 6.0, vals[0]);
+    check_pairs(n, 3, vals, vecs, 6.0);
+}
+
 static void test_bad_arguments_and_non_finite_input(void)
 {
     double a[4] = {1.0, 0.0, 0.0, 1.0};
@@ -274,6 +298,7 @@ int main(void)
     RUN_TEST(test_diagonal_and_zero_matrix);
     RUN_TEST(test_small_orders);
     RUN_TEST(test_reads_lower_triangle_only);
+    RUN_TEST(test_tiny_columns_keep_reflectors_orthogonal);
     RUN_TEST(test_bad_arguments_and_non_finite_input);
     RUN_TEST(test_random_matrices_match_jacobi);
     return UNITY_END();

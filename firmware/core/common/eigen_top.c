@@ -16,25 +16,34 @@
 #define ET_RESCALE 1e150    /* back substitution rescales its vector beyond this magnitude */
 
 /* Reflector of step j: (I - β v vᵀ) x = μ e1 for x = A[j+1.., j]; v_0 = 1 is
- * implicit, v_i (i ≥ 1) overwrite x_i in column j (Golub & Van Loan Alg. 5.1.1). */
+ * implicit, v_i (i ≥ 1) overwrite x_i in column j (Golub & Van Loan Alg. 5.1.1).
+ * Norms are taken of x / max|x_i| (as LAPACK's dlarfg): squares of entries
+ * below ~1e-154 would otherwise lose their precision in the subnormal range and
+ * β with them, and the reflector would no longer be orthogonal. */
 static double et_house(double *a, size_t n, size_t j, double *mu)
 {
     const size_t m = n - j - 1u;
+    double amax = 0.0;
+    for (size_t i = 0u; i < m; ++i) {
+        amax = fmax(amax, fabs(a[(j + 1u + i) * n + j]));
+    }
     const double x0 = a[(j + 1u) * n + j];
     double sigma = 0.0;
-    for (size_t i = 1u; i < m; ++i) {
-        sigma += a[(j + 1u + i) * n + j] * a[(j + 1u + i) * n + j];
+    for (size_t i = 1u; (amax > 0.0) && (i < m); ++i) {
+        const double xs = a[(j + 1u + i) * n + j] / amax;
+        sigma += xs * xs;
     }
     if (!(sigma > 0.0)) {
-        *mu = x0; /* already reduced (or below the squares' range: negligible) */
+        *mu = x0; /* already reduced (or the rest is below 1e-154 of it: negligible) */
         return 0.0;
     }
-    const double norm = sqrt(x0 * x0 + sigma);
-    const double v0 = (x0 <= 0.0) ? (x0 - norm) : (-sigma / (x0 + norm));
+    const double xs0 = x0 / amax;
+    const double norm = sqrt(xs0 * xs0 + sigma);
+    const double v0 = (xs0 <= 0.0) ? (xs0 - norm) : (-sigma / (xs0 + norm));
     for (size_t i = 1u; i < m; ++i) {
-        a[(j + 1u + i) * n + j] /= v0;
+        a[(j + 1u + i) * n + j] = (a[(j + 1u + i) * n + j] / amax) / v0;
     }
-    *mu = norm;
+    *mu = norm * amax;
     return 2.0 * v0 * v0 / (sigma + v0 * v0);
 }
 
@@ -209,16 +218,28 @@ static void et_solve(const eigen_top_work_t *ws, size_t n, double *x)
     }
 }
 
-/* x ← x minus its components along the vectors already found, then unit length. False if nothing is left. */
+/* x ← x minus its components along the vectors already found, then unit length. False if nothing is left.
+ * Two Gram-Schmidt passes ("twice is enough", Kahan-Parlett): near a cluster inverse iteration
+ * amplifies the earlier vectors' directions by up to 1/ε, and one pass leaves ~ε of them per unit
+ * of amplification. */
 static bool et_orthonormalise(const eigen_top_work_t *ws, size_t n, size_t done, double *x)
 {
-    for (size_t q = 0u; q < done; ++q) {
-        double dot = 0.0;
+    for (unsigned pass = 0u; pass < 2u; ++pass) {
+        double big0 = 0.0;
         for (size_t i = 0u; i < n; ++i) {
-            dot += ws->z[q][i] * x[i];
+            big0 = fmax(big0, fabs(x[i]));
         }
-        for (size_t i = 0u; i < n; ++i) {
-            x[i] -= dot * ws->z[q][i];
+        for (size_t i = 0u; (big0 > 0.0) && isfinite(big0) && (i < n); ++i) {
+            x[i] /= big0; /* unit scale first: the dot products cannot overflow */
+        }
+        for (size_t q = 0u; q < done; ++q) {
+            double dot = 0.0;
+            for (size_t i = 0u; i < n; ++i) {
+                dot += ws->z[q][i] * x[i];
+            }
+            for (size_t i = 0u; i < n; ++i) {
+                x[i] -= dot * ws->z[q][i];
+            }
         }
     }
     double big = 0.0;
