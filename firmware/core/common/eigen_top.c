@@ -28,8 +28,12 @@ static double et_house(double *a, size_t n, size_t j, double *mu)
         amax = fmax(amax, fabs(a[(j + 1u + i) * n + j]));
     }
     const double x0 = a[(j + 1u) * n + j];
+    if (!(amax > 0.0)) {
+        *mu = 0.0; /* a zero column */
+        return 0.0;
+    }
     double sigma = 0.0;
-    for (size_t i = 1u; (amax > 0.0) && (i < m); ++i) {
+    for (size_t i = 1u; i < m; ++i) {
         const double xs = a[(j + 1u + i) * n + j] / amax;
         sigma += xs * xs;
     }
@@ -229,8 +233,9 @@ static bool et_orthonormalise(const eigen_top_work_t *ws, size_t n, size_t done,
         for (size_t i = 0u; i < n; ++i) {
             big0 = fmax(big0, fabs(x[i]));
         }
-        for (size_t i = 0u; (big0 > 0.0) && isfinite(big0) && (i < n); ++i) {
-            x[i] /= big0; /* unit scale first: the dot products cannot overflow */
+        const double div0 = ((big0 > 0.0) && isfinite(big0)) ? big0 : 1.0;
+        for (size_t i = 0u; i < n; ++i) {
+            x[i] /= div0; /* unit scale first: the dot products cannot overflow */
         }
         for (size_t q = 0u; q < done; ++q) {
             double dot = 0.0;
