@@ -244,6 +244,34 @@ static void test_tiny_columns_keep_reflectors_orthogonal(void)
     check_pairs(n, 3, vals, vecs, 6.0);
 }
 
+/* A column that is e1 but for entries near 1e-80 (fuzz_pca finding 7): with
+ * the reflector of Golub & Van Loan, v_0 = -σ/(x_0 + ‖x‖) ≈ 1e-160 and v_0²
+ * is subnormal; the sign convention of dlarfg avoids the cancellation. */
+static void test_nearly_reduced_column_keeps_reflectors_orthogonal(void)
+{
+    const size_t n = 14;
+    memset(g_a, 0, sizeof g_a);
+    for (size_t r = 0; r < n; ++r) {
+        g_a[r * n + r] = 1.0 + 0.37 * (double)((r * 5u) % n);
+        if (r + 1u < n) {
+            g_a[r * n + r + 1u] = g_a[(r + 1u) * n + r] = 0.6;
+        }
+        for (size_t c = r + 2u; c < n; ++c) {
+            g_a[r * n + c] = g_a[c * n + r] = 1e-80 * (double)(r + c);
+        }
+    }
+    memcpy(g_copy, g_a, n * n * sizeof g_a[0]);
+    double vals[3];
+    double vecs[3 * NMAX];
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_sym_eigen_top(g_a, n, 3, vals, vecs, &g_ws));
+    memcpy(g_a, g_copy, n * n * sizeof g_a[0]);
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_sym_eigen(g_a, n, g_jvals, g_jvecs, 80u));
+    for (size_t i = 0; i < 3; ++i) {
+        TEST_ASSERT_DOUBLE_WITHIN(1e-13 * g_jvals[0], g_jvals[i], vals[i]);
+    }
+    check_pairs(n, 3, vals, vecs, g_jvals[0]);
+}
+
 static void test_bad_arguments_and_non_finite_input(void)
 {
     double a[4] = {1.0, 0.0, 0.0, 1.0};
@@ -299,6 +327,7 @@ int main(void)
     RUN_TEST(test_small_orders);
     RUN_TEST(test_reads_lower_triangle_only);
     RUN_TEST(test_tiny_columns_keep_reflectors_orthogonal);
+    RUN_TEST(test_nearly_reduced_column_keeps_reflectors_orthogonal);
     RUN_TEST(test_bad_arguments_and_non_finite_input);
     RUN_TEST(test_random_matrices_match_jacobi);
     return UNITY_END();

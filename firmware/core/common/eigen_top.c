@@ -15,11 +15,12 @@
 #define ET_RESID_REL 1e-9   /* accepted ‖T z - λ z‖ / ‖T‖ (the method reaches ~1e-15) */
 #define ET_RESCALE 1e150    /* back substitution rescales its vector beyond this magnitude */
 
-/* Reflector of step j: (I - β v vᵀ) x = μ e1 for x = A[j+1.., j]; v_0 = 1 is
- * implicit, v_i (i ≥ 1) overwrite x_i in column j (Golub & Van Loan Alg. 5.1.1).
- * Norms are taken of x / max|x_i| (as LAPACK's dlarfg): squares of entries
- * below ~1e-154 would otherwise lose their precision in the subnormal range and
- * β with them, and the reflector would no longer be orthogonal. */
+/* Reflector of step j: (I - τ v vᵀ) x = μ e1 for x = A[j+1.., j]; v_0 = 1 is
+ * implicit, v_i (i ≥ 1) overwrite x_i in column j. LAPACK's dlarfg
+ * convention: μ = -sign(x_0)·‖x‖, so v_0 = x_0 - μ adds two numbers of one
+ * sign, |v_i| ≤ 1 and τ ∈ [1, 2] (Golub & Van Loan's μ = +‖x‖ needs
+ * v_0 = -σ/(x_0 + ‖x‖), which underflows when x is nearly e1). Norms are taken
+ * of x / max|x_i|, so squares of entries near 1e-160 keep their precision. */
 static double et_house(double *a, size_t n, size_t j, double *mu)
 {
     const size_t m = n - j - 1u;
@@ -43,12 +44,13 @@ static double et_house(double *a, size_t n, size_t j, double *mu)
     }
     const double xs0 = x0 / amax;
     const double norm = sqrt(xs0 * xs0 + sigma);
-    const double v0 = (xs0 <= 0.0) ? (xs0 - norm) : (-sigma / (xs0 + norm));
+    const double mus = (xs0 >= 0.0) ? -norm : norm;
+    const double v0 = xs0 - mus;
     for (size_t i = 1u; i < m; ++i) {
         a[(j + 1u + i) * n + j] = (a[(j + 1u + i) * n + j] / amax) / v0;
     }
-    *mu = norm * amax;
-    return 2.0 * v0 * v0 / (sigma + v0 * v0);
+    *mu = mus * amax;
+    return (mus - xs0) / mus;
 }
 
 /* Component i of reflector j's vector. */
