@@ -110,9 +110,6 @@ static md_status_t em_build_cache(const em_params_t *p, em_cache_t *c)
     return MD_OK;
 }
 
-/* E-step: z_ig (after eq. 3.13) in the log domain; returns log p(Y|Θ) (eq. 3.5).
- * One log-sum-exp per point about its largest term: G + 1 exp and one log per
- * point; the log-weights log π_g are taken once per iteration. */
 /* Soft counts n_g and weighted sums Σ_i z_ig y_i of the M-step, accumulated in the same pass. */
 typedef struct {
     double n_soft[EM_G_MAX + 1u];
@@ -121,17 +118,18 @@ typedef struct {
 
 /* One point of the E-step: z_i· from the log-weights, its moments; returns the largest
  * log-term hi and sets *sum so that log p(y_i|Θ) = hi + log(*sum), *sum in [1, G + 1].
+ * lw: log π_0, then log π_g - ½(d log 2π + log det Σ_g) for g ≥ 1.
  * Inline with a literal d = 2 below, so the d-loops unroll for the controller's case. */
-static inline double em_estep_point(const double *y, size_t d, double lf0, const double *log_pi,
+static inline double em_estep_point(const double *y, size_t d, double lf0, const double *lw,
                                     const em_params_t *p, const em_cache_t *c, double *zi,
                                     em_moments_t *mom, double *sum_out)
 {
     const size_t k = p->g + 1u;
-    zi[0] = log_pi[0] + lf0;
+    zi[0] = lw[0] + lf0;
     double hi = zi[0];
     for (size_t g = 0u; g < p->g; ++g) {
         /* eq. 3.1 */
-        zi[g + 1u] = log_pi[g + 1u] + c->log_norm[g] - 0.5 * em_quad_tri(c->linv[g], d, y, p->mean[g]);
+        zi[g + 1u] = lw[g + 1u] - 0.5 * em_quad_tri(c->linv[g], d, y, p->mean[g]);
         hi = (zi[g + 1u] > hi) ? zi[g + 1u] : hi;
     }
     double sum = 0.0;
@@ -153,15 +151,18 @@ static inline double em_estep_point(const double *y, size_t d, double lf0, const
     return hi;
 }
 
+/* E-step: z_ig (after eq. 3.13) in the log domain; returns log p(Y|Θ) (eq. 3.5).
+ * One log-sum-exp per point about its largest term (G + 1 exp per point, one log
+ * per pass); the log-weights and Gaussian normalisers are taken once per iteration. */
 static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
                        const em_cache_t *c, double *z, em_moments_t *mom)
 {
     memset(mom, 0, sizeof *mom);
     const size_t k = p->g + 1u;
-    double log_pi[EM_G_MAX + 1u];
-    log_pi[0] = em_safe_log(p->pi0);
+    double lw[EM_G_MAX + 1u]; /* per iteration, not per point */
+    lw[0] = em_safe_log(p->pi0);
     for (size_t g = 0u; g < p->g; ++g) {
-        log_pi[g + 1u] = em_safe_log(p->pi[g]);
+        lw[g + 1u] = em_safe_log(p->pi[g]) + c->log_norm[g];
     }
     const bool tab = (outlier->tab_y == data->y) && (outlier->tab_n == data->n);
     /* eq. 3.5 as Σ_i hi_i + log Π_i sum_i: one log per call, the product
@@ -173,8 +174,8 @@ static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const
         const double *y = &data->y[i * data->d];
         const double lf0 = tab ? outlier->tab_log_f0[i] : em_outlier_logpdf(outlier, y);
         double sum = 1.0;
-        hi_sum += (data->d == 2u) ? em_estep_point(y, 2u, lf0, log_pi, p, c, &z[i * k], mom, &sum)
-                                  : em_estep_point(y, data->d, lf0, log_pi, p, c, &z[i * k], mom, &sum);
+        hi_sum += (data->d == 2u) ? em_estep_point(y, 2u, lf0, lw, p, c, &z[i * k], mom, &sum)
+                                  : em_estep_point(y, data->d, lf0, lw, p, c, &z[i * k], mom, &sum);
         prod *= sum;
         if ((i % EM_LOG_BATCH) == (EM_LOG_BATCH - 1u)) {
             int e = 0;
