@@ -88,24 +88,34 @@ static double em_safe_log(double w)
     return (w > 0.0) ? fmax(log(w), EM_LOG_TINY) : EM_LOG_TINY;
 }
 
+/* Σ_g = L Lᵀ, log det Σ_g, L⁻¹ (the E-step's quadratic form) and Σ_g⁻¹ = L⁻ᵀ L⁻¹
+ * (eq. 3.15's), one Cholesky factorisation per component. */
 static md_status_t em_build_cache(const em_params_t *p, em_cache_t *c)
 {
     const size_t d = p->d;
     for (size_t g = 0u; g < p->g; ++g) {
-        double sigma[EM_D_MAX * EM_D_MAX];
-        double work[EM_D_MAX * EM_D_MAX];
         for (size_t k = 0u; k < d * d; ++k) {
-            sigma[k] = p->lambda * p->shape[g][k];
+            c->chol[g][k] = p->lambda * p->shape[g][k];
         }
-        /* cppcheck-suppress uninitvar ; the loop above set the d x d elements copied */
-        memcpy(c->chol[g], sigma, d * d * sizeof sigma[0]); /* only the d x d part is set */
-        if ((linalg_cholesky(c->chol[g], d) != MD_OK) ||
-            (linalg_spd_inverse(sigma, d, c->inv[g], work, NULL) != MD_OK)) {
+        if (linalg_cholesky(c->chol[g], d) != MD_OK) {
             return MD_E_NUMERIC;
         }
         c->logdet[g] = linalg_cholesky_logdet(c->chol[g], d);
         c->log_norm[g] = -0.5 * ((double)d * EM_LOG_2PI + c->logdet[g]);
         em_tri_inverse(c->chol[g], d, c->linv[g]);
+        for (size_t a = 0u; a < d; ++a) {
+            for (size_t b = a; b < d; ++b) {
+                double s = 0.0;
+                for (size_t r = b; r < d; ++r) { /* L⁻¹ is lower triangular: rows r ≥ max(a, b) */
+                    s += c->linv[g][r * d + a] * c->linv[g][r * d + b];
+                }
+                c->inv[g][a * d + b] = s;
+                c->inv[g][b * d + a] = s;
+            }
+        }
+        if (!isfinite(c->logdet[g]) || !linalg_all_finite(c->inv[g], d * d)) {
+            return MD_E_NUMERIC;
+        }
     }
     return MD_OK;
 }
