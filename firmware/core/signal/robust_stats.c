@@ -55,16 +55,57 @@ uint32_t rs_abs_kth_i16(const int16_t *x, size_t n, int32_t offset, size_t k, rs
     return (uint32_t)((coarse << 8u) | fine);
 }
 
+/* The two middle ranks k and k + 1 of |x - offset| (n even) from one coarse
+ * and one fine pass: values as rs_abs_kth_i16 gives them. If the ranks fall
+ * in different coarse bins, rank k + 1 is the least value of its bin. */
+static void rs_abs_kth2_i16(const int16_t *x, size_t n, int32_t offset, size_t k, rs_hist_t *work, uint32_t *lo,
+                            uint32_t *hi)
+{
+    *lo = 0u;
+    *hi = 0u;
+    if ((x == NULL) || (work == NULL) || (k + 1u >= n) || (n > RS_MAX_N) || (offset < -32768) || (offset > 32767)) {
+        return;
+    }
+    memset(work->bins, 0, sizeof work->bins);
+    for (size_t i = 0u; i < n; ++i) {
+        work->bins[rs_absdiff(x[i], offset) >> 8u]++;
+    }
+    uint64_t before[2] = {0u, 0u};
+    const size_t coarse0 = rs_rank_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k, &before[0]);
+    const size_t coarse1 = rs_rank_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k + 1u, &before[1]);
+    memset(work->bins, 0, sizeof work->bins);
+    uint32_t least = RS_LEVEL_BINS - 1u; /* fine value of rank k + 1 when it is alone in its coarse bin */
+    for (size_t i = 0u; i < n; ++i) {
+        const uint32_t v = rs_absdiff(x[i], offset);
+        const uint32_t hb = v >> 8u;
+        if ((size_t)hb == coarse0) {
+            work->bins[v & 0xFFu]++;
+        } else if (((size_t)hb == coarse1) && ((v & 0xFFu) < least)) {
+            least = v & 0xFFu;
+        } else {
+            /* outside both coarse bins */
+        }
+    }
+    const size_t fine0 = rs_rank_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k - before[0], NULL);
+    const size_t fine1 =
+        (coarse1 == coarse0) ? rs_rank_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k + 1u - before[1], NULL) : least;
+    const uint32_t c0 = (uint32_t)coarse0;
+    const uint32_t c1 = (uint32_t)coarse1;
+    *lo = (c0 << 8u) | (uint32_t)fine0;
+    *hi = (c1 << 8u) | (uint32_t)fine1;
+}
+
 double rs_abs_median_i16(const int16_t *x, size_t n, int32_t offset, rs_hist_t *work)
 {
     if (n == 0u) {
         return 0.0;
     }
-    const uint32_t lo = rs_abs_kth_i16(x, n, offset, (n - 1u) / 2u, work);
     if ((n % 2u) == 1u) {
-        return (double)lo;
+        return (double)rs_abs_kth_i16(x, n, offset, (n - 1u) / 2u, work);
     }
-    const uint32_t hi = rs_abs_kth_i16(x, n, offset, n / 2u, work);
+    uint32_t lo = 0u;
+    uint32_t hi = 0u;
+    rs_abs_kth2_i16(x, n, offset, (n - 1u) / 2u, work, &lo, &hi);
     return 0.5 * ((double)lo + (double)hi);
 }
 

@@ -27,6 +27,9 @@
 
 #define SD_RING_MASK (SD_RING_SAMPLES - 1u)
 
+_Static_assert(SD_WARMUP_MAX <= 65536u, "a warm-up sum of int16 samples fits int32");
+_Static_assert(SD_SIGMA_STRIDE >= 1u, "sigma from every SD_SIGMA_STRIDE-th coefficient");
+
 void sd_config_default(sd_config_t *cfg, sd_method_t method, uint32_t sample_rate_hz)
 {
     if (cfg == NULL) {
@@ -84,6 +87,39 @@ static double sd_scale_width_ms(const sd_config_t *c, unsigned s)
 static uint32_t sd_ms_to_samples(double ms, uint32_t rate_hz)
 {
     return (uint32_t)lround(ms * 1e-3 * (double)rate_hz);
+}
+
+/* Straight-code body of the whole-step scan of a scale, chosen at setup:
+ * one per wavelet and stride, and chain bodies for the DOG1 boxes of the
+ * usual sample rates (20, 30, 40 kHz: boxes 4, 6, 8, 12, 16; also 10). */
+typedef enum {
+    SD_SCAN_MEX_1 = 0,
+    SD_SCAN_MEX_2 = 1,
+    SD_SCAN_DOG_1 = 2,
+    SD_SCAN_DOG_2 = 3,
+    SD_SCAN_CHAIN_4 = 4,
+    SD_SCAN_CHAIN_6 = 5,
+    SD_SCAN_CHAIN_8 = 6,
+    SD_SCAN_CHAIN_10 = 7,
+    SD_SCAN_CHAIN_12 = 8,
+    SD_SCAN_CHAIN_16 = 9
+} sd_scan_kind_t;
+
+static uint8_t sd_scan_kind(bool mexhat, uint32_t step, uint32_t w)
+{
+    if (mexhat) {
+        return (step == 1u) ? (uint8_t)SD_SCAN_MEX_1 : (uint8_t)SD_SCAN_MEX_2;
+    }
+    if (step == 1u) {
+        return (uint8_t)SD_SCAN_DOG_1;
+    }
+    const uint32_t chains[6] = {4u, 6u, 8u, 10u, 12u, 16u};
+    for (uint32_t j = 0u; j < 6u; ++j) {
+        if (w == chains[j]) {
+            return (uint8_t)((uint32_t)SD_SCAN_CHAIN_4 + j);
+        }
+    }
+    return (uint8_t)SD_SCAN_DOG_2;
 }
 
 /* Scale s: box width w, kernel = linear B-spline (box * box, support 2w-1)
@@ -158,8 +194,9 @@ static md_status_t sd_setup(sd_stream_t *st)
             /* a wide kernel varies slowly: its coefficient is evaluated at every
              * 2nd centre (peak loss <= 1 % for box >= 7, see docs/detector.md) */
             st->stride[s] = (st->box[s] >= SD_DECIMATE_BOX) ? 2u : 1u;
-            const uint32_t need = st->lag[s] + span * st->box[s];
-            st->hist_len = (need > st->hist_len) ? need : st->hist_len;
+            st->kind[s] = sd_scan_kind(c->wavelet == SD_WAVELET_MEXHAT, st->stride[s], st->box[s]);
+            st->back[s] = st->lag[s] + span * st->box[s]; /* oldest tap of the centre of step index 0 */
+            st->hist_len = (st->back[s] > st->hist_len) ? st->back[s] : st->hist_len;
         }
         st->c_first = first;
     }
@@ -195,6 +232,7 @@ static void sd_reset(sd_stream_t *st)
     memset(st->sum_sig, 0, sizeof st->sum_sig);
     memset(st->hits, 0, sizeof st->hits);
     memset(st->p2lin, 0, sizeof st->p2lin);
+    st->p2_base = st->hist_len;
     memset(&st->ev, 0, sizeof st->ev);
 }
 
@@ -262,10 +300,17 @@ uint32_t sd_view_argmin(const sd_view_t *v, uint32_t lo, uint32_t hi)
     }
     lo = (lo < v->lo) ? v->lo : lo;
     hi = (hi >= v->hi) ? (v->hi - 1u) : hi;
+    const int16_t *x = v->x;
+    const uint32_t mask = v->mask;
     uint32_t best = lo;
-    for (uint32_t i = lo + 1u; i <= hi; ++i) {
-        if (v->x[i & v->mask] < v->x[best & v->mask]) {
-            best = i;
+    if (lo <= hi) {
+        int16_t min = x[lo & mask];
+        for (uint32_t i = lo + 1u; i <= hi; ++i) {
+            const int16_t xi = x[i & mask];
+            if (xi < min) {
+                best = i;
+                min = xi;
+            }
         }
     }
     return best;
@@ -389,9 +434,9 @@ static void sd_scale_decision(sd_stream_t *st, unsigned s, uint64_t sum, uint32_
     st->ev.scale_dth[s] = dth / st->knorm[s];
 }
 
-/* Signed coefficient (two's complement in a uint32) of scale s whose newest
- * P2 tap is ring slot `slot`: the 4th (3rd) w-difference of P2. */
-static uint32_t sd_coef_at(const uint32_t *q, uint32_t w, bool mexhat)
+/* Signed coefficient (two's complement in a uint32) whose oldest P2 tap is
+ * q[0]: the 4th (3rd) w-difference of P2. */
+static inline uint32_t sd_coef_at(const uint32_t *q, uint32_t w, bool mexhat)
 {
     return mexhat ? (q[4u * w] - 4u * q[3u * w] + 6u * q[2u * w] - 4u * q[w] + q[0])
                   : (q[3u * w] - 3u * q[2u * w] + 3u * q[w] - q[0]);
@@ -400,8 +445,7 @@ static uint32_t sd_coef_at(const uint32_t *q, uint32_t w, bool mexhat)
 /* Oldest tap of scale s for the centre whose newest sample is step index i. */
 static const uint32_t *sd_taps(const sd_stream_t *st, unsigned s, uint32_t i)
 {
-    const uint32_t span = (st->cfg.wavelet == SD_WAVELET_MEXHAT) ? 4u : 3u;
-    return &st->p2lin[SD_P2_HIST + i - st->lag[s] - span * st->box[s]];
+    return &st->p2lin[st->p2_base + i - st->back[s]];
 }
 
 static uint32_t sd_abs_u32(uint32_t c)
@@ -409,7 +453,11 @@ static uint32_t sd_abs_u32(uint32_t c)
     return ((c & 0x80000000u) != 0u) ? (0u - c) : c;
 }
 
-typedef enum { SD_PASS_MOMENTS, SD_PASS_COARSE, SD_PASS_FINE } sd_pass_t;
+/* |c| for c >= 0, |c| - 1 for c < 0 (one instruction on Thumb-2). */
+static inline uint32_t sd_mag_floor(uint32_t c)
+{
+    return c ^ (0u - (c >> 31u));
+}
 
 /* Slow path of one coefficient above the lower of the two thresholds:
  * counts it for M and P(spike) if above the hard threshold, and says
@@ -424,33 +472,84 @@ static uint32_t sd_scale_hit(sd_stream_t *st, unsigned s, uint32_t c)
     return (mag > st->dth_i[s]) ? 1u : 0u;
 }
 
-/* Running sums of x[0..k) (online indices n0..n0+k-1) into the P2 ring, and
- * the raw samples into the delay line if `ring`. */
-static void sd_block_sums(sd_stream_t *st, const int16_t *x, uint32_t n0, uint32_t k, bool ring)
+/* Running sums of x[0..k) into out, and x into dst unless dst is NULL; `k`
+ * is a literal at the full-step call (the loop is then straight code). */
+static inline void sd_sums(const int16_t *x, uint32_t *out, int16_t *dst, uint32_t k, uint32_t *p1, uint32_t *p2)
 {
+    uint32_t a = *p1, b = *p2;
+#pragma GCC unroll 32
+    for (uint32_t i = 0u; i < k; ++i) {
+        const int16_t v = x[i];
+        const int32_t xv = v;
+        a += (uint32_t)xv;
+        b += a;
+        out[i] = b;
+        if (dst != NULL) {
+            dst[i] = v;
+        }
+    }
+    *p1 = a;
+    *p2 = b;
+}
+
+/* Running sums of x[0..k) (online indices n0..n0+k-1) into the P2 buffer at
+ * p2_base and, if `ring`, the raw samples into the delay line in the same
+ * pass. A step never wraps the delay line (SD_RING_SAMPLES is a multiple of
+ * the step and steps end on multiples of it). Replayed warm-up samples are
+ * copied down from buf[n0] to buf[n0 & mask] <= n0 - SD_RING_SAMPLES or read
+ * in place, so the forward copy never overwrites a sample still to be read. */
+static inline void sd_block_sums(sd_stream_t *st, const int16_t *x, uint32_t n0, uint32_t k, bool ring)
+{
+    uint32_t *out = &st->p2lin[st->p2_base];
+    int16_t *dst = &st->buf[n0 & SD_RING_MASK];
+    const bool copy = ring && (x != dst);
+    if (k == SD_STEP_SAMPLES) {
+        if (copy) {
+            sd_sums(x, out, dst, SD_STEP_SAMPLES, &st->p1, &st->p2);
+        } else {
+            sd_sums(x, out, NULL, SD_STEP_SAMPLES, &st->p1, &st->p2);
+        }
+        return;
+    }
     uint32_t p1 = st->p1, p2 = st->p2;
-    uint32_t *out = &st->p2lin[SD_P2_HIST];
 #pragma GCC unroll 4
     for (uint32_t i = 0u; i < k; ++i) {
-        const int32_t xv = x[i];
+        const int16_t v = x[i];
+        const int32_t xv = v;
         p1 += (uint32_t)xv;
         p2 += p1;
         out[i] = p2;
-    }
-    /* a step never wraps the delay line (SD_RING_SAMPLES is a multiple of the
-     * step and steps end on multiples of it), so this is one contiguous copy */
-    if (ring && (x != &st->buf[n0 & SD_RING_MASK])) {
-        memmove(&st->buf[n0 & SD_RING_MASK], x, k * sizeof x[0]);
+        if (copy) {
+            dst[i] = v;
+        }
     }
     st->p1 = p1;
     st->p2 = p2;
 }
 
-/* Keeps the last hist_len running sums as history for the next step. */
-static void sd_block_shift(sd_stream_t *st, uint32_t k)
+/* Moves past a step of k sums. Once the next step would not fit, the last
+ * hist_len sums (the history every tap of the next step reaches back into)
+ * move to the buffer's start: one copy every few steps, not every step. */
+static void sd_block_advance(sd_stream_t *st, uint32_t k)
 {
-    const uint32_t h = st->hist_len;
-    memmove(&st->p2lin[SD_P2_HIST - h], &st->p2lin[SD_P2_HIST - h + k], h * sizeof st->p2lin[0]);
+    const uint32_t len = (uint32_t)(sizeof st->p2lin / sizeof st->p2lin[0]);
+    st->p2_base += k;
+    if (st->p2_base > len - SD_STEP_SAMPLES) {
+        const uint32_t h = st->hist_len;
+        memmove(&st->p2lin[0], &st->p2lin[st->p2_base - h], h * sizeof st->p2lin[0]);
+        st->p2_base = h;
+    }
+}
+
+/* Clears the running sums and their history (start of a pass): the taps of
+ * the first step reach back into p2lin[0 .. hist_len); everything after it
+ * is written before it is read. */
+static void sd_sums_reset(sd_stream_t *st)
+{
+    st->p1 = 0u;
+    st->p2 = 0u;
+    memset(st->p2lin, 0, st->hist_len * sizeof st->p2lin[0]);
+    st->p2_base = st->hist_len;
 }
 
 /* Largest (c + lo) mod 2^32 over the evaluated centres of a step: it
@@ -476,34 +575,165 @@ static inline uint32_t sd_scan(const uint32_t *q, size_t w, bool mexhat, uint32_
     return m;
 }
 
-/* Bit i set if the centre of sample n0 + i (i0 <= i < k <= 32) fires scale s.
- * Wide scales (stride 2) are evaluated at even centres, their decision held
- * for the following odd one. Steps start on multiples of 32, so the same
- * centres are evaluated in every pass and whatever the chunking. */
-static uint32_t sd_block_scale(sd_stream_t *st, unsigned s, uint32_t i0, uint32_t k)
+/* A cheaper, looser test for a whole step (centres 0, step, ..., 31),
+ * straight code: the OR over the centres of sd_mag_floor(c) is at least every
+ * sd_mag_floor(c), and |c| > lo implies sd_mag_floor(c) >= lo, so OR < lo
+ * proves that no |c| exceeds lo. Otherwise (a few per cent of the steps) the
+ * exact pass decides. `mexhat` and `step` are literals at each call. */
+static inline bool sd_scan_step(const uint32_t *q, size_t w, bool mexhat, uint32_t step, uint32_t lo)
+{
+    const uint32_t *q1 = &q[w];
+    const uint32_t *q2 = &q[2u * w];
+    const uint32_t *q3 = &q[3u * w];
+    uint32_t acc = 0u;
+    if (mexhat) {
+        const uint32_t *q4 = &q[4u * w];
+#pragma GCC unroll 32
+        for (uint32_t i = 0u; i < SD_STEP_SAMPLES; i += step) {
+            acc |= sd_mag_floor(((q4[i] + q[i]) - 4u * (q3[i] + q1[i])) + 6u * q2[i]);
+        }
+    } else {
+#pragma GCC unroll 32
+        for (uint32_t i = 0u; i < SD_STEP_SAMPLES; i += step) {
+            acc |= sd_mag_floor((q3[i] - q[i]) - 3u * (q2[i] - q1[i]));
+        }
+    }
+    return acc >= lo;
+}
+
+/* sd_scan_step of the DOG1 wavelet at stride 2 for an even box w that is a
+ * literal at the call: the evaluated centres 0, 2, ..., 30 lie on the w/2
+ * chains r, r + w, r + 2w, ... (r = 0, 2, ..., w - 2). Along a chain the
+ * taps' first differences D are shared, c = D2 - 2 D1 + D0 (the third
+ * difference), so each coefficient after a chain's first costs one load and
+ * one subtraction more instead of four loads. Same coefficients, same
+ * (loose) test. */
+static inline bool sd_scan_chain(const uint32_t *q, uint32_t w, uint32_t lo)
+{
+    uint32_t acc = 0u;
+#pragma GCC unroll 16
+    for (uint32_t r = 0u; r < w; r += 2u) {
+        uint32_t p = q[r + w];
+        uint32_t d0 = p - q[r];
+        uint32_t t = q[r + 2u * w];
+        uint32_t d1 = t - p;
+        p = t;
+#pragma GCC unroll 16
+        for (uint32_t i = r; i < SD_STEP_SAMPLES; i += w) {
+            t = q[i + 3u * w];
+            const uint32_t d2 = t - p;
+            acc |= sd_mag_floor((d2 + d0) - 2u * d1); /* the coefficient of centre i */
+            p = t;
+            d0 = d1;
+            d1 = d2;
+        }
+    }
+    return acc >= lo;
+}
+
+/* The loose whole-step test of one scale with the body of its kind. */
+static bool sd_scan_full(const uint32_t *q, size_t w, uint8_t kind, uint32_t lo)
+{
+    bool r;
+    switch (kind) {
+    case (uint8_t)SD_SCAN_MEX_1:
+        r = sd_scan_step(q, w, true, 1u, lo);
+        break;
+    case (uint8_t)SD_SCAN_MEX_2:
+        r = sd_scan_step(q, w, true, 2u, lo);
+        break;
+    case (uint8_t)SD_SCAN_DOG_1:
+        r = sd_scan_step(q, w, false, 1u, lo);
+        break;
+    case (uint8_t)SD_SCAN_CHAIN_4:
+        r = sd_scan_chain(q, 4u, lo);
+        break;
+    case (uint8_t)SD_SCAN_CHAIN_6:
+        r = sd_scan_chain(q, 6u, lo);
+        break;
+    case (uint8_t)SD_SCAN_CHAIN_8:
+        r = sd_scan_chain(q, 8u, lo);
+        break;
+    case (uint8_t)SD_SCAN_CHAIN_10:
+        r = sd_scan_chain(q, 10u, lo);
+        break;
+    case (uint8_t)SD_SCAN_CHAIN_12:
+        r = sd_scan_chain(q, 12u, lo);
+        break;
+    case (uint8_t)SD_SCAN_CHAIN_16:
+        r = sd_scan_chain(q, 16u, lo);
+        break;
+    default:
+        r = sd_scan_step(q, w, false, 2u, lo);
+        break;
+    }
+    return r;
+}
+
+/* Exact pass over a step some coefficient of which may exceed lo: hit bits
+ * (bit i: centre of step index i fires scale s) and the M / P(spike) counts.
+ * `mexhat` and `step` are literals at each call. */
+static inline uint32_t sd_mask_loop(sd_stream_t *st, unsigned s, const uint32_t *q, uint32_t i0, uint32_t k,
+                                    bool mexhat, uint32_t step)
 {
     const uint32_t lo = st->lo_i[s];
-    if (lo >= 0x7FFFFFFFu) {
-        return 0u; /* flat scale */
-    }
-    const size_t w = st->box[s];
-    const bool mexhat = (st->cfg.wavelet == SD_WAVELET_MEXHAT);
-    const uint32_t *q = sd_taps(st, s, 0u);
-    const uint32_t step = st->stride[s];
-    i0 = (i0 + step - 1u) / step * step;
-    const uint32_t m = (step == 1u) ? sd_scan(q, w, mexhat, i0, k, 1u, lo) : sd_scan(q, w, mexhat, i0, k, 2u, lo);
-    if (m <= 2u * lo) {
-        return 0u;
-    }
+    const uint32_t w = st->box[s];
     uint32_t mask = 0u;
     for (uint32_t i = i0; i < k; i += step) { /* rare: some coefficient passed the lower threshold */
-        const uint32_t c = sd_coef_at(&q[i], (uint32_t)w, mexhat);
+        const uint32_t c = sd_coef_at(&q[i], w, mexhat);
         if ((c + lo) > 2u * lo) {
             mask |= sd_scale_hit(st, s, c) << i;
         }
     }
+    return mask;
+}
+
+static uint32_t sd_block_mask(sd_stream_t *st, unsigned s, const uint32_t *q, uint32_t i0, uint32_t k)
+{
+    const bool mexhat = (st->cfg.wavelet == SD_WAVELET_MEXHAT);
+    if (st->stride[s] == 1u) {
+        return mexhat ? sd_mask_loop(st, s, q, i0, k, true, 1u) : sd_mask_loop(st, s, q, i0, k, false, 1u);
+    }
+    const uint32_t mask = mexhat ? sd_mask_loop(st, s, q, i0, k, true, 2u) : sd_mask_loop(st, s, q, i0, k, false, 2u);
     /* a decimated scale's decision holds until its next evaluated centre */
-    return (step == 2u) ? (mask | ((mask << 1u) & ((k < 32u) ? ((1u << k) - 1u) : 0xFFFFFFFFu))) : mask;
+    return mask | ((mask << 1u) & (0xFFFFFFFFu >> ((32u - k) & 31u))); /* bits below k (k >= 1) */
+}
+
+/* Hit bits of every scale for one step: bit i set if the centre of sample
+ * n0 + i (i0 <= i < k <= 32) fires some scale. Wide scales (stride 2) are
+ * evaluated at even centres, their decision held for the following odd one.
+ * Steps start on multiples of 32, so the same centres are evaluated in
+ * every pass and whatever the chunking. A scale's exact pass (sd_block_mask)
+ * runs only if its scan says some |c| may exceed the lower threshold. */
+static uint32_t sd_block_scales(sd_stream_t *st, uint32_t i0, uint32_t k)
+{
+    uint32_t hits = 0u;
+    if ((i0 == 0u) && (k == SD_STEP_SAMPLES)) {
+        for (unsigned s = 0u; s < st->ns; ++s) {
+            const uint32_t lo = st->lo_i[s];
+            const uint32_t *q = sd_taps(st, s, 0u);
+            if ((lo < 0x7FFFFFFFu) && sd_scan_full(q, st->box[s], st->kind[s], lo)) {
+                hits |= sd_block_mask(st, s, q, 0u, k);
+            }
+        }
+        return hits;
+    }
+    const bool mexhat = (st->cfg.wavelet == SD_WAVELET_MEXHAT);
+    for (unsigned s = 0u; s < st->ns; ++s) {
+        const uint32_t lo = st->lo_i[s];
+        const uint32_t *q = sd_taps(st, s, 0u);
+        const uint32_t step = st->stride[s];
+        const uint32_t j0 = (i0 + step - 1u) / step * step;
+        if (lo >= 0x7FFFFFFFu) {
+            continue; /* flat scale */
+        }
+        const uint32_t m = (step == 1u) ? sd_scan(q, st->box[s], mexhat, j0, k, 1u, lo)
+                                        : sd_scan(q, st->box[s], mexhat, j0, k, 2u, lo);
+        if (m > 2u * lo) {
+            hits |= sd_block_mask(st, s, q, j0, k);
+        }
+    }
+    return hits;
 }
 
 /* First step-local index whose centre has a full kernel. */
@@ -519,10 +749,8 @@ static uint32_t sd_block_first(const sd_stream_t *st, uint32_t n0, uint32_t k)
 /* M and P(spike) over every warm-up coefficient (hard threshold only). */
 static void sd_warm_hits(sd_stream_t *st)
 {
-    st->p1 = 0u;
-    st->p2 = 0u;
+    sd_sums_reset(st);
     st->n_coefs = 0u;
-    memset(st->p2lin, 0, sizeof st->p2lin);
     for (unsigned s = 0u; s < st->ns; ++s) {
         st->dth_i[s] = SD_NONE;
         st->lo_i[s] = st->hard_i[s];
@@ -531,92 +759,149 @@ static void sd_warm_hits(sd_stream_t *st)
         const uint32_t k = ((st->warm_n - n0) < SD_STEP_SAMPLES) ? (st->warm_n - n0) : SD_STEP_SAMPLES;
         sd_block_sums(st, &st->buf[n0], n0, k, false);
         const uint32_t i0 = sd_block_first(st, n0, k);
-        for (unsigned s = 0u; s < st->ns; ++s) {
-            (void)sd_block_scale(st, s, i0, k);
-        }
+        (void)sd_block_scales(st, i0, k);
         st->n_coefs += k - i0;
-        sd_block_shift(st, k);
+        sd_block_advance(st, k);
     }
 }
 
+#define SD_WARM_GROUP 2u /* scales binned together by one warm-up pass (two histograms) */
+
+/* Median search of the sigma_j: the bin shift of each scale, the coarse bins
+ * of both middle ranks (and the ranks before them) and, in the fine pass,
+ * the smallest low byte seen in the upper rank's coarse bin. */
 typedef struct {
-    int64_t sum[MD_WAVELET_SCALES_MAX];
-    uint64_t maxabs[MD_WAVELET_SCALES_MAX];
-    int64_t mean[MD_WAVELET_SCALES_MAX];
     uint32_t shift[MD_WAVELET_SCALES_MAX];
-    uint32_t count;
+    size_t bin[MD_WAVELET_SCALES_MAX][2];
+    uint64_t before[MD_WAVELET_SCALES_MAX][2];
+    uint32_t fmin[SD_WARM_GROUP];
+    uint64_t total;
 } sd_warm_t;
 
-/* One pass over every SD_SIGMA_STRIDE-th warm-up coefficient of scale s
- * (all scales for the moments). The histogram passes bin |c - mean| >> shift;
- * the fine pass bins the low byte inside coarse bins b1 (rs) and b2 (rs2). */
-static void sd_warm_bin(sd_stream_t *st, sd_pass_t pass, unsigned j, uint32_t a, const size_t *bins, sd_warm_t *w)
+/* Bins |c| >> shift of the eligible centres [i, k) (every 2nd, from i) of
+ * one scale: the coarse pass (b == NULL) counts its high byte; the fine pass
+ * counts the low byte of those in coarse bin b[0] and keeps the least low
+ * byte of those in coarse bin b[1] (SD_NONE when both ranks share a coarse
+ * bin). `mexhat` and whether b is NULL are literals at each call. */
+static inline void sd_warm_bin_loop(const uint32_t *q, uint32_t w, bool mexhat, uint32_t i, uint32_t k,
+                                    uint32_t shift, const size_t *b, uint32_t *bins, uint32_t *fmin)
 {
-    const uint32_t mag = sd_abs_u32(a);
-    const int64_t c = ((a & 0x80000000u) != 0u) ? -(int64_t)mag : (int64_t)mag;
-    if (pass == SD_PASS_MOMENTS) {
-        w->sum[j] += c;
-        w->maxabs[j] = (mag > w->maxabs[j]) ? mag : w->maxabs[j];
-        return;
-    }
-    const int64_t d = c - w->mean[j];
-    const uint32_t u = (uint32_t)((uint64_t)((d < 0) ? -d : d) >> w->shift[j]);
-    if (pass == SD_PASS_COARSE) {
-        st->rs.bins[u >> 8u]++;
-    } else {
-        st->rs.bins[u & 0xFFu] += ((u >> 8u) == bins[0]) ? 1u : 0u;
-        st->rs2.bins[u & 0xFFu] += ((u >> 8u) == bins[1]) ? 1u : 0u;
+    const uint32_t b0 = (b != NULL) ? (uint32_t)b[0] : 0u;
+    const uint32_t b1 = (b != NULL) ? (uint32_t)b[1] : 0u;
+    for (; i < k; i += SD_SIGMA_STRIDE) {
+        const uint32_t u = sd_abs_u32(sd_coef_at(&q[i], w, mexhat)) >> shift;
+        const uint32_t hb = u >> 8u;
+        if (b == NULL) {
+            bins[hb]++;
+        } else {
+            bins[u & 0xFFu] += (hb == b0) ? 1u : 0u;
+            if ((hb == b1) && ((u & 0xFFu) < *fmin)) {
+                *fmin = u & 0xFFu;
+            }
+        }
     }
 }
 
-static void sd_warm_pass(sd_stream_t *st, sd_pass_t pass, unsigned s, const size_t *bins, sd_warm_t *w)
+static void sd_warm_bin(const uint32_t *q, uint32_t w, bool mexhat, uint32_t i, uint32_t k, uint32_t shift,
+                        const size_t *b, uint32_t *bins, uint32_t *fmin)
+{
+    if (b == NULL) {
+        if (mexhat) {
+            sd_warm_bin_loop(q, w, true, i, k, shift, NULL, bins, fmin);
+        } else {
+            sd_warm_bin_loop(q, w, false, i, k, shift, NULL, bins, fmin);
+        }
+    } else if (mexhat) {
+        sd_warm_bin_loop(q, w, true, i, k, shift, b, bins, fmin);
+    } else {
+        sd_warm_bin_loop(q, w, false, i, k, shift, b, bins, fmin);
+    }
+}
+
+/* One pass over every SD_SIGMA_STRIDE-th warm-up coefficient of the scales
+ * a .. a+ng-1 (ng <= SD_WARM_GROUP; histogram rs for the first, rs2 for the
+ * second). Coarse pass if !fine, else the fine pass in the bins found. */
+static void sd_warm_pass(sd_stream_t *st, bool fine, unsigned a, unsigned ng, sd_warm_t *w)
 {
     const bool mexhat = (st->cfg.wavelet == SD_WAVELET_MEXHAT);
     const uint32_t first = st->dmax + st->c_first;
-    st->p1 = 0u;
-    st->p2 = 0u;
-    memset(st->p2lin, 0, sizeof st->p2lin);
+    uint32_t *const bins[SD_WARM_GROUP] = {st->rs.bins, st->rs2.bins};
+    size_t b[SD_WARM_GROUP][2];
+    sd_sums_reset(st);
     memset(st->rs.bins, 0, sizeof st->rs.bins);
     memset(st->rs2.bins, 0, sizeof st->rs2.bins);
-    w->count = 0u;
+    for (unsigned g = 0u; g < ng; ++g) {
+        w->fmin[g] = RS_LEVEL_BINS - 1u;
+        b[g][0] = w->bin[a + g][0];
+        b[g][1] = (w->bin[a + g][1] == w->bin[a + g][0]) ? (size_t)SD_NONE : w->bin[a + g][1];
+    }
     for (uint32_t n0 = 0u; n0 < st->warm_n; n0 += SD_STEP_SAMPLES) {
         const uint32_t k = ((st->warm_n - n0) < SD_STEP_SAMPLES) ? (st->warm_n - n0) : SD_STEP_SAMPLES;
         sd_block_sums(st, &st->buf[n0], n0, k, false);
-        for (uint32_t i = sd_block_first(st, n0, k); i < k; ++i) {
-            if (((n0 + i - first) % SD_SIGMA_STRIDE) != 0u) {
-                continue;
-            }
-            w->count++;
-            for (unsigned j = 0u; j < st->ns; ++j) {
-                if ((pass == SD_PASS_MOMENTS) || (j == s)) {
-                    sd_warm_bin(st, pass, j, sd_coef_at(sd_taps(st, j, i), st->box[j], mexhat), bins, w);
-                }
-            }
+        uint32_t i = sd_block_first(st, n0, k);
+        if (i < k) { /* the first eligible centre: n0 + i - first a multiple of the stride */
+            i += (SD_SIGMA_STRIDE - ((n0 + i - first) % SD_SIGMA_STRIDE)) % SD_SIGMA_STRIDE;
         }
-        sd_block_shift(st, k);
+        for (unsigned g = 0u; g < ng; ++g) {
+            /* |c| < 2^31: a shift of 31 already gives 0, as 32 would */
+            const uint32_t sh = (w->shift[a + g] < 31u) ? w->shift[a + g] : 31u;
+            sd_warm_bin(sd_taps(st, a + g, 0u), st->box[a + g], mexhat, i, k, sh, fine ? b[g] : NULL, bins[g],
+                        &w->fmin[g]);
+        }
+        sd_block_advance(st, k);
     }
 }
 
-/* Exact median (to 2^shift counts) of |c - mean| for scale s: one coarse pass
- * locates both middle ranks, one fine pass resolves them. */
-static double sd_warm_median(sd_stream_t *st, unsigned s, sd_warm_t *w)
+/* sigma_j, the hard threshold and the reported figures of scale s from the
+ * median |c|; 0 if the scale is flat (it then never fires). */
+static int sd_scale_sigma(sd_stream_t *st, unsigned s, double med, double n_nom)
 {
-    const uint64_t total = w->count; /* set by the caller: the passes recount the same centres */
-    const uint64_t k[2] = {(total - 1u) / 2u, total / 2u};
-    uint64_t before[2] = {0u, 0u};
-    size_t bins[2];
-    sd_warm_pass(st, SD_PASS_COARSE, s, NULL, w);
-    bins[0] = rs_rank_bin(st->rs.bins, RS_LEVEL_BINS, k[0], &before[0]);
-    bins[1] = rs_rank_bin(st->rs.bins, RS_LEVEL_BINS, k[1], &before[1]);
-    sd_warm_pass(st, SD_PASS_FINE, s, bins, w);
-    double v = 0.0;
-    for (unsigned r = 0u; r < 2u; ++r) {
-        const size_t fine = rs_rank_bin((r == 0u) ? st->rs.bins : st->rs2.bins, RS_LEVEL_BINS, k[r] - before[r], NULL);
-        const double u = (double)((bins[r] << 8u) | fine);
-        /* a shifted value u stands for [u, u+1) * 2^shift */
-        v += 0.5 * ((w->shift[s] == 0u) ? u : ((u + 0.5) * ldexp(1.0, (int)w->shift[s])));
+    st->sigma_c[s] = med / SD_MAD_TO_SIGMA;
+    st->hard_c[s] = st->sigma_c[s] * sqrt(2.0 * log(n_nom));
+    st->hard_i[s] = (uint32_t)fmin(st->hard_c[s], 4.0e9);
+    st->ev.scale_width_ms[s] = sd_scale_width_ms(&st->cfg, s);
+    st->ev.scale_sigma[s] = st->sigma_c[s] / st->knorm[s];
+    if (!(st->sigma_c[s] > 0.0)) {
+        st->hard_i[s] = SD_NONE;
+        st->dth_i[s] = SD_NONE;
+        st->lo_i[s] = SD_NONE;
+        return 0;
     }
-    return v;
+    return 1;
+}
+
+/* Exact medians (to 2^shift counts) of |c| for the scales a .. a+ng-1: one
+ * coarse pass locates both middle ranks of each, one fine pass resolves
+ * them. Ranks in different coarse bins are neighbours (total even), so the
+ * upper one is the least value of its bin. */
+static int sd_warm_medians(sd_stream_t *st, unsigned a, unsigned ng, sd_warm_t *w, double n_nom)
+{
+    const uint64_t k[2] = {(w->total - 1u) / 2u, w->total / 2u};
+    sd_warm_pass(st, false, a, ng, w);
+    for (unsigned g = 0u; g < ng; ++g) {
+        const uint32_t *bins = (g == 0u) ? st->rs.bins : st->rs2.bins;
+        for (unsigned r = 0u; r < 2u; ++r) {
+            w->bin[a + g][r] = rs_rank_bin(bins, RS_LEVEL_BINS, k[r], &w->before[a + g][r]);
+        }
+    }
+    sd_warm_pass(st, true, a, ng, w);
+    int any = 0;
+    for (unsigned g = 0u; g < ng; ++g) {
+        const unsigned s = a + g;
+        const uint32_t *bins = (g == 0u) ? st->rs.bins : st->rs2.bins;
+        double v = 0.0;
+        for (unsigned r = 0u; r < 2u; ++r) {
+            const size_t fine = ((r == 0u) || (w->bin[s][1] == w->bin[s][0]))
+                                    ? rs_rank_bin(bins, RS_LEVEL_BINS, k[r] - w->before[s][r], NULL)
+                                    : (size_t)w->fmin[g];
+            const size_t uv = (w->bin[s][r] << 8u) | fine;
+            const double u = (double)uv;
+            /* a shifted value u stands for [u, u+1) * 2^shift */
+            v += 0.5 * ((w->shift[s] == 0u) ? u : ((u + 0.5) * ldexp(1.0, (int)w->shift[s])));
+        }
+        any |= sd_scale_sigma(st, s, v, n_nom);
+    }
+    return any;
 }
 
 /* Per-scale statistics of Nenadic & Burdick on the warm-up: sigma =
@@ -628,37 +913,25 @@ static int sd_wavelet_stats(sd_stream_t *st)
     sd_warm_t w;
     memset(&w, 0, sizeof w);
     const uint32_t first = st->dmax + st->c_first;
-    const uint64_t total = (st->warm_n > first) ? ((st->warm_n - first + SD_SIGMA_STRIDE - 1u) / SD_SIGMA_STRIDE) : 0u;
-    if (total == 0u) {
+    w.total = (st->warm_n > first) ? ((st->warm_n - first + SD_SIGMA_STRIDE - 1u) / SD_SIGMA_STRIDE) : 0u;
+    if (w.total == 0u) {
         return 0;
     }
-    w.count = (uint32_t)total;
-    const double n_nom = fmax(st->cfg.interval_s * (double)st->cfg.sample_rate_hz, (double)total + 2.0);
-    int any = 0;
+    const double n_nom = fmax(st->cfg.interval_s * (double)st->cfg.sample_rate_hz, (double)w.total + 2.0);
     for (unsigned s = 0u; s < st->ns; ++s) {
         /* The kernel sums to zero exactly, so mean(c) over the warm-up is a
          * boundary term of order range/N: it is taken as 0. A zero-sum kernel
          * bounds |c| by L1/2 * (max x - min x), which sets the bin shift. */
-        w.mean[s] = 0;
         const uint64_t range =
             ((uint64_t)st->kl1[s] / 2u + 1u) * (uint64_t)((int64_t)st->warm_max - (int64_t)st->warm_min + 1);
-        w.shift[s] = 0u;
         for (unsigned k = 0u; (k < 32u) && ((range >> w.shift[s]) > 0xFFFFu); ++k) {
             w.shift[s]++;
         }
-        const double med = sd_warm_median(st, s, &w);
-        st->sigma_c[s] = med / SD_MAD_TO_SIGMA;
-        st->hard_c[s] = st->sigma_c[s] * sqrt(2.0 * log(n_nom));
-        st->hard_i[s] = (uint32_t)fmin(st->hard_c[s], 4.0e9);
-        st->ev.scale_width_ms[s] = sd_scale_width_ms(&st->cfg, s);
-        st->ev.scale_sigma[s] = st->sigma_c[s] / st->knorm[s];
-        if (!(st->sigma_c[s] > 0.0)) {
-            st->hard_i[s] = SD_NONE; /* flat at this scale: never fires */
-            st->dth_i[s] = SD_NONE;
-            st->lo_i[s] = SD_NONE;
-            continue;
-        }
-        any = 1;
+    }
+    int any = 0;
+    for (unsigned a = 0u; a < st->ns; a += SD_WARM_GROUP) {
+        const unsigned ng = ((st->ns - a) < SD_WARM_GROUP) ? (st->ns - a) : SD_WARM_GROUP;
+        any |= sd_warm_medians(st, a, ng, &w, n_nom);
     }
     if (!any) {
         return 0;
@@ -672,9 +945,7 @@ static int sd_wavelet_stats(sd_stream_t *st)
     /* the online pass (replay included) recounts from zero */
     memset(st->sum_sig, 0, sizeof st->sum_sig);
     memset(st->hits, 0, sizeof st->hits);
-    memset(st->p2lin, 0, sizeof st->p2lin);
-    st->p1 = 0u;
-    st->p2 = 0u;
+    sd_sums_reset(st);
     st->n_coefs = 0u;
     return 1;
 }
@@ -741,6 +1012,49 @@ static void sd_run_edge(sd_stream_t *st, uint32_t c, bool hit)
         /* no change */
     }
     st->due = st->n; /* let the service look at groups and commits now */
+}
+
+/* Index of the lowest set bit of b != 0 (de Bruijn multiplication). */
+static uint32_t sd_lowest_bit(uint32_t b)
+{
+    static const uint8_t pos[32] = {0u,  1u,  28u, 2u,  29u, 14u, 24u, 3u, 30u, 22u, 20u, 15u, 25u, 17u, 4u,  8u,
+                                    31u, 27u, 13u, 23u, 21u, 19u, 16u, 7u, 26u, 12u, 18u, 6u,  11u, 5u,  10u, 9u};
+    return pos[((b & (0u - b)) * 0x077CB531u) >> 27u];
+}
+
+/* The run logic of one step: sd_run_edge at every centre i0 <= i < k whose
+ * hit bit differs from the run state, and at every SD_RUN_MAX-th centre of
+ * a run (the split), in order, as a scan of every centre would call it;
+ * the centres in between are skipped with bit operations. */
+static void sd_step_runs(sd_stream_t *st, uint32_t n0, uint32_t i0, uint32_t k, uint32_t hits)
+{
+    const uint32_t valid = 0xFFFFFFFFu >> ((32u - k) & 31u); /* bits below k (k >= 1) */
+    uint32_t i = i0;
+    for (uint32_t it = 0u; (it <= 2u * SD_STEP_SAMPLES) && (i < k); ++it) {
+        const uint32_t from = 0xFFFFFFFFu << i; /* bits i and above (i < k <= 32) */
+        if (!st->in_run) {
+            const uint32_t rest = hits & valid & from;
+            if (rest == 0u) {
+                return;
+            }
+            i = sd_lowest_bit(rest);
+            sd_run_edge(st, n0 + i - st->dmax, true); /* a run starts */
+        } else {
+            const uint32_t gaps = ~hits & valid & from;
+            const uint32_t end = (gaps != 0u) ? sd_lowest_bit(gaps) : k;   /* first centre without a hit */
+            const uint32_t left = SD_RUN_MAX - (n0 + i - st->dmax - st->run_start); /* centres to the split */
+            if ((n0 + i - st->dmax - st->run_start >= SD_RUN_MAX) || (left < end - i)) {
+                i = ((n0 + i - st->dmax - st->run_start) >= SD_RUN_MAX) ? i : (i + left);
+                sd_run_edge(st, n0 + i - st->dmax, true); /* split */
+            } else if (end < k) {
+                i = end;
+                sd_run_edge(st, n0 + i - st->dmax, false); /* the run ends */
+            } else {
+                return; /* the run goes on into the next step */
+            }
+        }
+        i++;
+    }
 }
 
 static void sd_refine(sd_stream_t *st)
@@ -829,21 +1143,12 @@ static void sd_step_wavelet(sd_stream_t *st, const int16_t *x, uint32_t k)
     const uint32_t n0 = st->n;
     sd_block_sums(st, x, n0, k, true);
     const uint32_t i0 = sd_block_first(st, n0, k);
-    uint32_t hits = 0u;
-    for (unsigned s = 0u; s < st->ns; ++s) {
-        hits |= sd_block_scale(st, s, i0, k);
-    }
-    sd_block_shift(st, k);
+    const uint32_t hits = sd_block_scales(st, i0, k);
+    sd_block_advance(st, k);
     st->n_coefs += k - i0;
     st->n = n0 + k;
     if ((hits != 0u) || st->in_run) {
-        for (uint32_t i = i0; i < k; ++i) {
-            const bool hit = ((hits >> i) & 1u) != 0u;
-            const uint32_t c = n0 + i - st->dmax;
-            if ((hit != st->in_run) || (hit && (c - st->run_start >= SD_RUN_MAX))) {
-                sd_run_edge(st, c, hit);
-            }
-        }
+        sd_step_runs(st, n0, i0, k, hits);
     }
     if (st->n >= st->due) {
         sd_service(st);
@@ -882,12 +1187,20 @@ static md_status_t sd_warm_take(sd_stream_t *st, const int16_t *x, size_t n, siz
 {
     const uint32_t room = st->warm_target - st->warm_n;
     const uint32_t k = (n < (size_t)room) ? (uint32_t)n : room;
+    int16_t *dst = &st->buf[st->warm_n];
+    int32_t sum = 0; /* at most SD_WARMUP_MAX samples of 2^15: no overflow */
+    int16_t lo = st->warm_min;
+    int16_t hi = st->warm_max;
     for (uint32_t i = 0u; i < k; ++i) {
-        st->buf[st->warm_n + i] = x[i];
-        st->warm_sum += x[i];
-        st->warm_min = (x[i] < st->warm_min) ? x[i] : st->warm_min;
-        st->warm_max = (x[i] > st->warm_max) ? x[i] : st->warm_max;
+        const int16_t v = x[i];
+        dst[i] = v;
+        sum += v;
+        lo = (v < lo) ? v : lo;
+        hi = (v > hi) ? v : hi;
     }
+    st->warm_sum += sum;
+    st->warm_min = lo;
+    st->warm_max = hi;
     st->warm_n += k;
     *used = k;
     if (st->warm_n >= st->warm_target) {
@@ -897,12 +1210,27 @@ static md_status_t sd_warm_take(sd_stream_t *st, const int16_t *x, size_t n, siz
     return st->status;
 }
 
+/* Online samples after the replay: at most to the next step boundary. */
+static md_status_t sd_run_some(sd_stream_t *st, const int16_t *x, size_t n, size_t *used)
+{
+    if ((uint64_t)st->n + n > SD_MAX_INTERVAL_SAMPLES) {
+        return MD_E_CAPACITY;
+    }
+    const uint32_t k = sd_min_u32((n < SD_STEP_SAMPLES) ? (uint32_t)n : SD_STEP_SAMPLES, sd_step_room(st));
+    sd_step(st, x, k);
+    *used = k;
+    return MD_OK;
+}
+
 md_status_t sd_stream_push(sd_stream_t *st, const int16_t *x, size_t n, size_t *used)
 {
     if ((st == NULL) || (used == NULL) || ((x == NULL) && (n > 0u))) {
         return MD_E_ARG;
     }
     *used = 0u;
+    if (st->phase == SD_PHASE_RUN) { /* the common case: warm-up replayed, status MD_OK */
+        return sd_run_some(st, x, n, used);
+    }
     if ((st->phase == SD_PHASE_IDLE) || (st->phase == SD_PHASE_DONE) ||
         ((st->phase == SD_PHASE_ENDED) && (n > 0u))) {
         return MD_E_STATE;
@@ -918,13 +1246,7 @@ md_status_t sd_stream_push(sd_stream_t *st, const int16_t *x, size_t n, size_t *
         sd_replay_some(st);
         return MD_OK;
     }
-    if ((uint64_t)st->n + n > SD_MAX_INTERVAL_SAMPLES) {
-        return MD_E_CAPACITY;
-    }
-    const uint32_t k = sd_min_u32((n < SD_STEP_SAMPLES) ? (uint32_t)n : SD_STEP_SAMPLES, sd_step_room(st));
-    sd_step(st, x, k);
-    *used = k;
-    return MD_OK;
+    return sd_run_some(st, x, n, used);
 }
 
 md_status_t sd_stream_end(sd_stream_t *st)

@@ -153,6 +153,8 @@ typedef struct {
     uint32_t box[MD_WAVELET_SCALES_MAX];
     uint32_t stride[MD_WAVELET_SCALES_MAX];
     uint32_t lag[MD_WAVELET_SCALES_MAX];
+    uint32_t back[MD_WAVELET_SCALES_MAX];  /* lag + span * box: P2 history a centre's oldest tap reaches back */
+    uint8_t kind[MD_WAVELET_SCALES_MAX];   /* straight-code scan body of the scale (spike_detect.c) */
     uint32_t dmax;
     uint32_t c_first;
     double knorm[MD_WAVELET_SCALES_MAX];
@@ -169,7 +171,8 @@ typedef struct {
     uint32_t p1;
     uint32_t p2;
     uint32_t hist_len;
-    uint32_t p2lin[SD_P2_HIST + SD_STEP_SAMPLES];  /* P2 of the current step after SD_P2_HIST of history */
+    uint32_t p2_base;       /* p2lin index of the current step's first sum (>= hist_len of history before it) */
+    uint32_t p2lin[SD_P2_HIST + 10u * SD_STEP_SAMPLES];  /* running sums P2: history, then the steps since the last shift */
     bool in_run;
     uint32_t run_start;
     bool grp_open;

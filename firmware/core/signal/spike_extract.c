@@ -35,6 +35,30 @@ static int sx_config_valid(const sx_config_t *c)
 
 /* ---- window cutter (shared) --------------------------------------------- */
 
+/* Copies d_w samples of the view from `start` into row, offset removed and
+ * saturated to int16; returns the number of saturated samples. */
+static uint32_t sx_copy16(const sd_view_t *v, uint32_t start, size_t d_w, int32_t offset, int16_t *row)
+{
+    const uint32_t mask = v->mask;
+    const uint32_t first = start & mask;
+    uint32_t clipped = 0u;
+    if ((uint64_t)first + d_w - 1u <= (uint64_t)mask) { /* the window does not wrap the ring: no masking */
+        const int16_t *x = &v->x[first];
+        for (size_t j = 0u; j < d_w; ++j) {
+            const int32_t d = (int32_t)x[j] - offset;
+            clipped += (((uint32_t)d + 32768u) > 0xFFFFu) ? 1u : 0u; /* d outside the int16 range */
+            row[j] = (int16_t)((d < INT16_MIN) ? INT16_MIN : ((d > INT16_MAX) ? INT16_MAX : d));
+        }
+        return clipped;
+    }
+    for (size_t j = 0u; j < d_w; ++j) {
+        const int32_t d = (int32_t)v->x[(start + (uint32_t)j) & mask] - offset;
+        clipped += (((uint32_t)d + 32768u) > 0xFFFFu) ? 1u : 0u;
+        row[j] = (int16_t)((d < INT16_MIN) ? INT16_MIN : ((d > INT16_MAX) ? INT16_MAX : d));
+    }
+    return clipped;
+}
+
 /* Realigns t to the first minimum within +-realign (thesis: align by the
  * waveform minimum) and copies the window, offset removed, into row16
  * (saturated, *clipped counts saturations) or rowd (times gain). */
@@ -52,15 +76,13 @@ static sx_cut_t sx_cut(const sd_view_t *v, uint32_t t, const sx_config_t *c, int
     if (start < v->lo) {
         return SX_CUT_LOST;
     }
-    for (size_t j = 0u; j < c->d_w; ++j) {
-        const int32_t d = (int32_t)v->x[(start + (uint32_t)j) & v->mask] - offset;
-        if (rowd != NULL) {
+    if (rowd != NULL) {
+        for (size_t j = 0u; j < c->d_w; ++j) {
+            const int32_t d = (int32_t)v->x[(start + (uint32_t)j) & v->mask] - offset;
             rowd[j] = c->gain * (double)d;
-        } else {
-            const int32_t s = (d > INT16_MAX) ? INT16_MAX : ((d < INT16_MIN) ? INT16_MIN : d);
-            *clipped += (s != d) ? 1u : 0u;
-            row16[j] = (int16_t)s;
         }
+    } else {
+        *clipped += sx_copy16(v, start, c->d_w, offset, row16);
     }
     return SX_CUT_OK;
 }
@@ -238,6 +260,9 @@ static void sx_service_noise(sx_stream_t *sx, const sd_stream_t *det, const sd_e
         sx->queue[(sx->q_head + sx->q_count) % SX_QUEUE_MAX] = s;
         sx->q_count++;
     }
+    if (sx->q_count == 0u) {
+        return; /* nothing waits for confirmation (the usual case) */
+    }
     bool has_pend = false;
     uint32_t pend_t = 0u;
     const uint32_t horizon = sd_stream_horizon(det, &has_pend, &pend_t);
@@ -262,9 +287,13 @@ md_status_t sx_stream_service(sx_stream_t *sx, const sd_stream_t *det, bool fina
         return MD_E_ARG;
     }
     const sd_events_t *ev = sd_stream_events(det);
-    const sd_view_t v = sd_stream_view(det);
     sx->win->offset = ev->offset;
     sx->noise->offset = ev->offset;
+    if (!final && (sx->ev_cursor >= ev->n) && (sx->q_count == 0u) &&
+        ((uint64_t)sx->pick.next + sx->cfg.d_w > (uint64_t)sd_stream_processed(det))) {
+        return MD_OK; /* most calls: no new event to cut, no candidate to draw or to confirm */
+    }
+    const sd_view_t v = sd_stream_view(det);
     sx_service_spikes(sx, ev, &v, final);
     sx_service_noise(sx, det, ev, &v);
     if (!final) {
