@@ -13,7 +13,9 @@
 #   4. cortex-m7 build (build/bench-m7): md-bench-m7 under QEMU -icount
 #      shift=0, instructions per stage; size report and stack budget of
 #      microdrive-fw-m7;
-#   5. sim-bench --minutes 100 (Release): simulator speed-up over real time.
+#   5. sim-bench --minutes 100 (Release): simulator speed-up over real time;
+#   6. tools/bench/profile_mhtc.sh HEAD: the MHTC step split per model class
+#      (of the committed tree: run on a clean checkout).
 # Needs: cmake, ninja, gcc, gcc-arm-none-eabi, qemu-system-arm, valgrind,
 # python3-venv (and PyPI for scikit-learn). Times are reported, never judged;
 # the script fails only if a tool fails. ~5-10 min on 2 cores.
@@ -77,6 +79,9 @@ scripts/stack-budget.py build/bench-m7/bin/microdrive-fw-m7.elf >"$raw/stack.txt
 
 log "simulator speed (sim-bench --minutes 100)"
 build/bench-rel/bin/sim-bench --minutes 100 >"$raw/sim.txt"
+
+log "MHTC step per model class (tools/bench/profile_mhtc.sh HEAD)"
+tools/bench/profile_mhtc.sh HEAD "$raw/profile-mhtc" >"$raw/profile.txt"
 
 python3 tools/bench/report.py "$raw" "$out_md" "$runs"
 log "wrote $out_md"

@@ -338,6 +338,7 @@ md_status_t bench_setup(void)
     g_info.models = (uint32_t)g_mh_res.models_fitted;
     g_info.reused = g_mh.stats.models_reused - g_mh_saved.stats.models_reused;
     g_info.shared = g_mh.stats.models_shared - g_mh_saved.stats.models_shared;
+    g_info.warm = g_mh.stats.models_warm - g_mh_saved.stats.models_warm;
     g_info.cluster_best_g = (uint32_t)g_cl_res.best_g;
     g_ready = 1;
     return MD_OK;

@@ -66,6 +66,7 @@ typedef struct {
     uint32_t models;       ///< model hypotheses MHTC clustered in the measured step
     uint32_t reused;       ///< of those, how many reused a similar parent's EM fit (no EM of their own)
     uint32_t shared;       ///< of those, how many were copied from a parent with the same track records
+    uint32_t warm;         ///< EM fits started from another parent's fit (mhtc_config_t.warm_start)
     uint32_t cluster_best_g; ///< best G of clustering alone
 } bench_info_t;
 

@@ -21,9 +21,12 @@ wr = r'''
 #define PG(N) __attribute__((noinline)) static md_status_t em_fit_G##N(const em_data_t *a, const em_outlier_t *b, \
     const em_prior_t *c, const uint8_t *d, size_t e, const em_options_t *f, double *g, em_fit_t *h) \
     { return em_fit(a, b, c, d, e, f, g, h); } \
+    __attribute__((noinline)) static md_status_t em_fit_from_G##N(const em_data_t *a, const em_outlier_t *b, \
+    const em_prior_t *c, const em_params_t *d, const em_options_t *f, double *g, em_fit_t *h) \
+    { return em_fit_from(a, b, c, d, f, g, h); } \
     __attribute__((noinline)) static md_status_t evidence_G##N(const em_data_t *a, const em_outlier_t *b, \
-    const em_prior_t *c, const em_params_t *d, double e, em_evidence_work_t *f, double *g) \
-    { return em_evidence_laplace(a, b, c, d, e, f, g); }
+    const em_params_t *d, em_evidence_work_t *f) \
+    { return em_evidence_data(a, b, d, f); }
 PG(1) PG(2) PG(3) PG(4)
 static md_status_t em_fit_by_g(const em_data_t *a, const em_outlier_t *b, const em_prior_t *c, const uint8_t *d,
     size_t e, const em_options_t *f, double *g, em_fit_t *h)
@@ -31,27 +34,36 @@ static md_status_t em_fit_by_g(const em_data_t *a, const em_outlier_t *b, const 
     return (e == 1u) ? em_fit_G1(a, b, c, d, e, f, g, h) : (e == 2u) ? em_fit_G2(a, b, c, d, e, f, g, h)
          : (e == 3u) ? em_fit_G3(a, b, c, d, e, f, g, h) : em_fit_G4(a, b, c, d, e, f, g, h);
 }
-static md_status_t evidence_by_g(const em_data_t *a, const em_outlier_t *b, const em_prior_t *c,
-    const em_params_t *d, double e, em_evidence_work_t *f, double *g)
+static md_status_t em_fit_from_by_g(const em_data_t *a, const em_outlier_t *b, const em_prior_t *c,
+    const em_params_t *d, const em_options_t *f, double *g, em_fit_t *h)
 {
-    return (d->g == 1u) ? evidence_G1(a, b, c, d, e, f, g) : (d->g == 2u) ? evidence_G2(a, b, c, d, e, f, g)
-         : (d->g == 3u) ? evidence_G3(a, b, c, d, e, f, g) : evidence_G4(a, b, c, d, e, f, g);
+    return (d->g == 1u) ? em_fit_from_G1(a, b, c, d, f, g, h) : (d->g == 2u) ? em_fit_from_G2(a, b, c, d, f, g, h)
+         : (d->g == 3u) ? em_fit_from_G3(a, b, c, d, f, g, h) : em_fit_from_G4(a, b, c, d, f, g, h);
+}
+static md_status_t evidence_by_g(const em_data_t *a, const em_outlier_t *b, const em_params_t *d,
+    em_evidence_work_t *f)
+{
+    return (d->g == 1u) ? evidence_G1(a, b, d, f) : (d->g == 2u) ? evidence_G2(a, b, d, f)
+         : (d->g == 3u) ? evidence_G3(a, b, d, f) : evidence_G4(a, b, d, f);
 }
 '''
-anchor = 'static void mhtc_model_evidence(mhtc_state_t *st, const em_data_t *data, mhtc_workspace_t *ws, mhtc_model_t *m);'
+anchor = '/* A fitted model of class g of an earlier parent with nt tracks'
 assert anchor in s
 s = s.replace(anchor, wr + anchor, 1)
-s = s.replace('const md_status_t fs = em_fit(data,', 'const md_status_t fs = em_fit_by_g(data,')
-s = s.replace('if ((em_evidence_laplace(data, &c->outlier', 'if ((evidence_by_g(data, &c->outlier')
+for old, new in (('fs = em_fit_from(data,', 'fs = em_fit_from_by_g(data,'),
+                 ('fs = em_fit(data,', 'fs = em_fit_by_g(data,'),
+                 ('(em_evidence_data(data, &ws->cl.outlier', '(evidence_by_g(data, &ws->cl.outlier')):
+    assert old in s, old
+    s = s.replace(old, new)
 open(p, 'w').write(s)
 PY
 (cd "$work/src" && cmake -S . -B "$work/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
     -DCMAKE_C_FLAGS_RELEASE="-O2 -DNDEBUG -Wno-error -fno-ipa-icf" >/dev/null &&
     cmake --build "$work/build" -j2 --target md-bench >/dev/null)
-valgrind --tool=callgrind --collect-atstart=no --callgrind-out-file="$work/cg" \
+valgrind --tool=callgrind --collect-atstart=no --compress-strings=no --callgrind-out-file="$work/cg" \
     "$work/build/bin/md-bench" --callgrind >"$work/stdout.txt" 2>"$work/stderr.txt"
 f=$(grep -l "stage:mhtc" "$work"/cg.*)
 echo "mhtc stage of $rev: $(sed -n 's/^summary: *\([0-9]*\).*/\1/p' "$f") Ir (host callgrind, inclusive per function)"
 callgrind_annotate --inclusive=yes "$f" 2>/dev/null |
-    grep -E "em_fit_G|evidence_G|em_seed_from_targets|mhtc_commit|kf_update|mhtc_associate|murty_best|mhtc_predict_pool|em_outlier_tabulate|em_labels|mhtc_step \[" |
+    grep -E "em_fit_G|em_fit_from_G|evidence_G|em_evidence_finish|em_seed_from_targets|mhtc_commit|kf_update|mhtc_associate|murty_best|mhtc_predict_pool|em_outlier_tabulate|em_labels|mhtc_step \[" |
     sed -e 's/\.constprop\.[0-9]*//' -e 's/ \[.*//' -e 's/???://'

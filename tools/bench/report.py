@@ -35,6 +35,16 @@ def first(pattern: str, text: str, default="?"):
     return m.group(1) if m else default
 
 
+def profile_parts(text: str) -> dict:
+    """Inclusive Ir per function from tools/bench/profile_mhtc.sh ("12,345 (3.1%)  name")."""
+    out = {}
+    for line in text.splitlines():
+        m = re.match(r"^\s*([0-9,]+)\s+\([^)]*\)\s+(\S+)\s*$", line)
+        if m:
+            out.setdefault(m.group(2), int(m.group(1).replace(",", "")))
+    return out
+
+
 def ok(flag: bool) -> str:
     return "meets" if flag else "**misses**"
 
@@ -106,43 +116,50 @@ def main() -> int:
     w(f"Target: one electrode's whole cycle ≤ {M7_CYCLE_TARGET:,} instructions on the M7 → "
       f"{int(tot_m7):,}: {ok(tot_m7 <= M7_CYCLE_TARGET)} ({tot_m7 / M7_CYCLE_TARGET:.1f}× the budget).")
     mh = int(m7.get("mhtc", {}).get("instr", "0") or 0)
-    if tot_m7 > M7_CYCLE_TARGET and tot_m7 > 0:
-        w(f"The MHTC step is {100.0 * mh / tot_m7:.0f}% of the cycle. Of its {interval.get('models', '?')} model "
+    det = int(m7.get("detect", {}).get("instr", "0") or 0)
+    pca = int(m7.get("pca", {}).get("instr", "0") or 0)
+    if tot_m7 > 0:
+        w(f"Where the cycle goes on the M7: detection {det / 1e6:.1f} M, PCA {pca / 1e6:.1f} M, the MHTC step "
+          f"{mh / 1e6:.1f} M ({100.0 * mh / tot_m7:.0f}%). Of the step's {interval.get('models', '?')} model "
           f"hypotheses, {interval.get('reused', '?')} reuse the EM fit of a parent with a similar prior "
-          f"(re-evaluated: ζ, log-posterior, Laplace evidence, associations) and {interval.get('shared', '?')} are "
-          "exact copies; the rest each run MAP-EM, SQUAREM-accelerated, to a relative tolerance of 1e-7. What is "
-          "left (next table): the EM fits of the G = 3 model (the weak third neuron is not separated in 2-D; "
-          "17-46 EM steps per fit with SQUAREM, ~130 without) and one Laplace evidence (App. B Hessian, "
-          "~1 M instructions each) per model hypothesis, reused fits included. Clustering alone (G = 1..4, no reuse "
-          "possible) is itself below the budget now, but detection and PCA (26 M on the M7) leave 22 M for MHTC. "
-          "newlib's exp on this toolchain is already the table-driven one (~0.1 kB, tens of instructions): a "
-          "polynomial exp was tried and was slower. Remaining levers, not taken: the data part of the Laplace "
-          "Hessian of a reused fit is the donor's (only the mean-prior blocks differ, eq. B.21-B.23), so caching it "
-          "would remove ~12 of the 24 per-point Hessian passes (~14 M host instructions) at ~5-11 KB of workspace "
-          "per cached model class; a tighter iteration bound on the MCU (a quality trade-off); BIC instead of "
-          "Laplace (changes the algorithm's evidence: not taken). Detection, PCA and control are far inside the "
-          "budget.")
+          f"(re-evaluated: ζ, log-posterior, evidence, associations), {interval.get('shared', '?')} are exact "
+          f"copies, and of the EM fits that run, {interval.get('warm', '?')} start from another parent's fit of "
+          "the same class (warm start, docs/mhtc.md); each Laplace evidence data part is computed once per EM fit. "
+          "What is left is mostly the one G = 3 fit from the §3.3.4 seeds: its third component splits a cluster "
+          "along a flat ridge of the posterior (~40 EM steps with SQUAREM; next table).")
     w("")
     w("### Where the MHTC step goes")
     w("")
     w("Host callgrind, inclusive instructions of md-bench's `mhtc` stage, split by model class with "
-      "`tools/bench/profile_mhtc.sh REV` (a throw-away copy of the tree that calls em_fit and the evidence "
-      "through one non-inlined wrapper per G). No G = 4 model survives P3 pruning (eq. 4.11) in this step; "
-      "PCA is its own stage (above).")
+      "`tools/bench/profile_mhtc.sh REV` (a throw-away copy of the tree that calls em_fit, em_fit_from and the "
+      "evidence's data part through one non-inlined wrapper per G; the `now` column is this run's, of HEAD). "
+      "No G = 4 model survives P3 pruning (eq. 4.11) in this step; PCA is its own stage (above). Before the "
+      "warm start every EM fit started from the seeds, and every model hypothesis computed a whole evidence.")
     w("")
-    w("| part of one mhtc_step | before (bb05bff) | now (SQUAREM + evidence) |")
-    w("|---|---:|---:|")
-    w("| EM fits, G = 1 | 3,887,657 | 2,861,027 |")
-    w("| EM fits, G = 2 | 5,148,074 | 5,261,761 |")
-    w("| EM fits, G = 3 | 78,112,334 | 37,199,404 |")
-    w("| Laplace evidence, G = 1 | 5,485,040 | 4,777,387 |")
-    w("| Laplace evidence, G = 2 | 11,282,723 | 9,268,863 |")
-    w("| Laplace evidence, G = 3 | 18,123,494 | 14,285,976 |")
-    w("| seeding from the targets (em_seed_from_targets) | 1,872,533 | 1,872,533 |")
-    w("| commit: Kalman updates (kf_update 2.50 M) and track bookkeeping | 2,679,102 | 2,678,697 |")
-    w("| Murty / LAP (murty_best incl. lap_solve) | 261,773 | 262,381 |")
-    w("| labels, outlier table, prediction, priors | < 0.3 M | < 0.3 M |")
-    w("| **whole step** | **127,654,369** | **79,267,462** |")
+    prof = profile_parts((raw / "profile.txt").read_text() if (raw / "profile.txt").exists() else "")
+
+    def pr(*names: str) -> str:
+        vals = [prof.get(n) for n in names]
+        return " / ".join(f"{v:,}" if v is not None else "0" for v in vals)
+
+    w("| part of one mhtc_step | before (bb05bff) | SQUAREM + evidence (3b5717d) | now |")
+    w("|---|---:|---:|---:|")
+    w(f"| EM fits from the seeds, G = 1 | 3,887,657 | 2,861,027 | {pr('em_fit_G1')} |")
+    w(f"| EM fits from the seeds, G = 2 | 5,148,074 | 5,261,761 | {pr('em_fit_G2')} |")
+    w(f"| EM fits from the seeds, G = 3 | 78,112,334 | 37,199,404 | {pr('em_fit_G3')} |")
+    w(f"| EM fits from another parent's fit, G = 1 / 2 / 3 | - | - | "
+      f"{pr('em_fit_from_G1', 'em_fit_from_G2', 'em_fit_from_G3')} |")
+    w(f"| Laplace evidence (now: its data part, once per EM fit), G = 1 | 5,485,040 | 4,777,387 | "
+      f"{pr('evidence_G1')} |")
+    w(f"| Laplace evidence, G = 2 | 11,282,723 | 9,268,863 | {pr('evidence_G2')} |")
+    w(f"| Laplace evidence, G = 3 | 18,123,494 | 14,285,976 | {pr('evidence_G3')} |")
+    w(f"| evidence finished under each model's parent prior (em_evidence_finish) | - | - | "
+      f"{pr('em_evidence_finish')} |")
+    w(f"| seeding from the targets (em_seed_from_targets) | 1,872,533 | 1,872,533 | {pr('em_seed_from_targets')} |")
+    w(f"| commit: Kalman updates (kf_update) and track bookkeeping | 2,679,102 | 2,678,697 | {pr('mhtc_commit')} |")
+    w(f"| Murty / LAP (murty_best incl. lap_solve) | 261,773 | 262,381 | {pr('murty_best')} |")
+    w("| labels, outlier table, prediction, priors | < 0.3 M | < 0.3 M | < 0.3 M |")
+    w(f"| **whole step** | **127,654,369** | **79,267,462** | **{pr('mhtc_step')}** |")
     w("")
     w("### Before and after (perf work of issue 7)")
     w("")
@@ -161,10 +178,18 @@ def main() -> int:
       "below) | 170,012,320 | 82,348,440 | 196,150,280 | 22 |")
     w("| E-step point, scatter and evidence terms inlined with a literal d = 2 (bit-identical fits) | "
       "119,979,520 | 54,184,280 | 146,117,480 | 18 |")
-    w("| SQUAREM between EM steps (same fixed point; log-posterior never decreases; host callgrind only, "
-      "no M7 run of this commit) | host Ir 85,824,819 | host Ir 38,014,773 | host Ir 113,235,975 | |")
-    w(f"| **now: + Laplace Hessian summed over its upper triangle, one log-sum-exp per point** | "
-      f"{mh:,} | {int(m7.get('cluster', {}).get('instr', '0') or 0):,} | {int(tot_m7):,} | "
+    w("| SQUAREM between EM steps, Laplace Hessian over its upper triangle (commit 3b5717d) | "
+      "74,211,280 | 34,075,360 | 100,349,240 | 9 |")
+    w("| PCA's d leading eigenpairs by tridiagonalisation + bisection + inverse iteration (pca 9.39 M → 2.09 M); "
+      "one evidence data part per EM fit, finished under every prior that evaluates it; d = 2 Hessian pass "
+      "written out (commits a55bae3, e57e9cd) | 54,585,800 | 31,342,480 | 73,429,560 | |")
+    w("| md_exp (table-driven e^x) and one log per E-step/evidence pass | 49,803,520 | 28,296,640 | 68,647,280 | |")
+    w("| warm start of a parent's fits from an earlier parent's (commit 6531ae9; E-steps per step 305 → 176) | "
+      "32,507,080 | 28,295,360 | 51,350,800 | |")
+    w("| evidence folds four point gradients per pass over H; normalisers once per iteration; one Cholesky per "
+      "component | 30,750,800 | 26,621,320 | 49,607,840 | |")
+    w(f"| **now: + detection rewritten for the M7, bit-identical output (detect 16.61 M → {det / 1e6:.2f} M, "
+      f"commit 7d6d171)** | {mh:,} | {int(m7.get('cluster', {}).get('instr', '0') or 0):,} | {int(tot_m7):,} | "
       f"{float(host.get('mhtc', {}).get('median_ms', 'nan')):.0f} |")
     w("")
     w("Quality guard, MHTC (docs/tracking-eval.md, 5 scenarios; final-lineage ID consistency / spurious tracks, "

@@ -7,7 +7,8 @@
 ///
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
-///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--quiet]
+///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
+///          [--no-warm-start] [--quiet]
 /// Writes OUT/labels.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -41,6 +42,7 @@ typedef struct {
     cluster_evidence_t evidence;
     double em_tol;
     int quiet;
+    int no_warm_start;
 } rp_options_t;
 
 /* Large state lives in static storage, as on the controller. */
@@ -80,7 +82,7 @@ static int rp_usage(const char *msg)
     (void)fprintf(stderr,
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
-                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--quiet]\n",
+                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--no-warm-start] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -114,6 +116,10 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
         int bad = 0;
         if (strcmp(a, "--quiet") == 0) {
             o->quiet = 1;
+            continue;
+        }
+        if (strcmp(a, "--no-warm-start") == 0) {
+            o->no_warm_start = 1; /* every fit from the §3.3.4 seeds (docs/mhtc.md) */
             continue;
         }
         if (v == NULL) {
@@ -461,6 +467,7 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
     if (o->em_tol > 0.0) {
         cfg.em.tol = o->em_tol;
     }
+    cfg.warm_start = (o->no_warm_start == 0);
     if (rp_mkdirs(o->out) != 0) {
         (void)fprintf(stderr, "mhtc-replay: %s: cannot create: %s\n", o->out, strerror(errno));
         return 1;
