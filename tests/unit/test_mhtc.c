@@ -359,7 +359,7 @@ static void run_two_neurons_warm(bool warm, uint64_t seed)
 {
     start(MHTC_TRACKER_MHTC, seed);
     g_st.cfg.share_jeffreys = 0.0; /* every parent fits: the warm start is what differs */
-    g_st.cfg.warm_start = warm;
+    g_st.cfg.warm_jeffreys = warm ? MHTC_WARM_JEFFREYS_DEFAULT : 0.0;
     for (int k = 0; k < 5; ++k) {
         interval_with(true, k != 2, false);
     }

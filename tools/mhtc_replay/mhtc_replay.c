@@ -8,7 +8,7 @@
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
 ///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
-///          [--no-warm-start] [--quiet]
+///          [--warm-jeffreys J | --no-warm-start] [--quiet]
 /// Writes OUT/labels.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -42,7 +42,7 @@ typedef struct {
     cluster_evidence_t evidence;
     double em_tol;
     int quiet;
-    int no_warm_start;
+    double warm_jeffreys;
 } rp_options_t;
 
 /* Large state lives in static storage, as on the controller. */
@@ -82,7 +82,7 @@ static int rp_usage(const char *msg)
     (void)fprintf(stderr,
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
-                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--no-warm-start] [--quiet]\n",
+                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -109,6 +109,7 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
     o->g_max = MHTC_G_MAX;
     o->evidence = CLUSTER_EVIDENCE_LAPLACE;
     o->em_tol = 0.0; /* 0: the clustering default */
+    o->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
@@ -119,7 +120,7 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
             continue;
         }
         if (strcmp(a, "--no-warm-start") == 0) {
-            o->no_warm_start = 1; /* every fit from the §3.3.4 seeds (docs/mhtc.md) */
+            o->warm_jeffreys = 0.0; /* every fit from the §3.3.4 seeds (docs/mhtc.md) */
             continue;
         }
         if (v == NULL) {
@@ -147,6 +148,8 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
         } else if (strcmp(a, "--g-max") == 0) {
             bad = rp_num(v, 1.0, (double)MHTC_G_MAX, &x);
             o->g_max = (size_t)x;
+        } else if (strcmp(a, "--warm-jeffreys") == 0) {
+            bad = rp_num(v, 0.0, 1e300, &o->warm_jeffreys);
         } else if (strcmp(a, "--em-tol") == 0) {
             bad = rp_num(v, 1e-15, 1e-2, &o->em_tol);
         } else if (strcmp(a, "--evidence") == 0) {
@@ -467,7 +470,7 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
     if (o->em_tol > 0.0) {
         cfg.em.tol = o->em_tol;
     }
-    cfg.warm_start = (o->no_warm_start == 0);
+    cfg.warm_jeffreys = o->warm_jeffreys;
     if (rp_mkdirs(o->out) != 0) {
         (void)fprintf(stderr, "mhtc-replay: %s: cannot create: %s\n", o->out, strerror(errno));
         return 1;

@@ -41,7 +41,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->nn_gate_sigma = 2.0;
     cfg->gnn_gate_chi2 = 9.21;
     cfg->share_jeffreys = MHTC_SHARE_JEFFREYS_DEFAULT;
-    cfg->warm_start = true;
+    cfg->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
 }
 
 md_status_t mhtc_config_check(const mhtc_config_t *c)
@@ -61,6 +61,7 @@ md_status_t mhtc_config_check(const mhtc_config_t *c)
                     isfinite(c->init_var) && (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) &&
                     (c->em.tol > 0.0) && (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) &&
                     (c->gnn_gate_chi2 > 0.0) && (c->share_jeffreys >= 0.0) && isfinite(c->share_jeffreys) &&
+                    (c->warm_jeffreys >= 0.0) &&
                     ((c->evidence == CLUSTER_EVIDENCE_LAPLACE) || (c->evidence == CLUSTER_EVIDENCE_BIC));
     return ok ? MD_OK : MD_E_ARG;
 }
@@ -204,12 +205,17 @@ size_t mhtc_fill_targets(const mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
     return h->n_tracks;
 }
 
-/* A fitted model of class g of an earlier parent with nt tracks (the first, i.e. the most
- * probable parent's), or MHTC_NO_SLOT. */
-static size_t mhtc_warm_donor(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t g, size_t nt)
+static bool mhtc_priors_within(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t d, size_t q, size_t p,
+                               double jeffreys_max, double pd_max);
+
+/* A fitted model of class g of an earlier parent whose prior is within cfg.warm_jeffreys of
+ * parent p's (the first, i.e. the most probable such parent's), or MHTC_NO_SLOT. */
+static size_t mhtc_warm_donor(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t d, size_t g, size_t p)
 {
     for (size_t q = 0u; (q < ws->n_models) && (q < sizeof ws->model / sizeof ws->model[0]); ++q) {
-        if ((ws->model[q].g == g) && (mhtc_parent(st, ws->model[q].parent)->n_tracks == nt)) {
+        const size_t r = ws->model[q].parent;
+        if ((ws->model[q].g == g) && (r != p) &&
+            mhtc_priors_within(st, ws, d, r, p, st->cfg.warm_jeffreys, 1.0)) {
             return q;
         }
     }
@@ -223,7 +229,7 @@ static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, m
 {
     cluster_workspace_t *c = &ws->cl;
     m->usable = false;
-    const size_t warm = st->cfg.warm_start ? mhtc_warm_donor(st, ws, m->g, nt) : MHTC_NO_SLOT;
+    const size_t warm = mhtc_warm_donor(st, ws, data->d, m->g, m->parent);
     md_status_t fs = MD_E_ARG;
     if (warm != MHTC_NO_SLOT) {
         fs = em_fit_from(data, &c->outlier, &c->prior, &ws->model[warm].fit.params, &st->cfg.em, c->z, &m->fit);
@@ -481,11 +487,12 @@ static double mhtc_jeffreys(const double *ma, const double *sa, const double *mb
  * of q (in any order: target order only labels ζ's columns, which are recomputed) whose
  * prediction is within cfg.share_jeffreys and whose P_d is within MHTC_SHARE_PD: the thesis'
  * "similar priors" (§4.6). Greedy one-to-one matching; O(J^2 d^3). */
-static bool mhtc_prior_close(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t d, size_t q, size_t p)
+static bool mhtc_priors_within(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t d, size_t q, size_t p,
+                               double jeffreys_max, double pd_max)
 {
     const mhtc_hyp_t *a = mhtc_parent(st, q);
     const mhtc_hyp_t *b = mhtc_parent(st, p);
-    if ((a->n_tracks != b->n_tracks) || !(st->cfg.share_jeffreys > 0.0) || (a->n_tracks > MHTC_TARGETS_MAX)) {
+    if ((a->n_tracks != b->n_tracks) || !(jeffreys_max > 0.0) || (a->n_tracks > MHTC_TARGETS_MAX)) {
         return false;
     }
     bool used[MHTC_TARGETS_MAX] = {false};
@@ -496,9 +503,9 @@ static bool mhtc_prior_close(const mhtc_state_t *st, const mhtc_workspace_t *ws,
             const size_t ra = a->track[k];
             found = !used[k] && (ra < MHTC_POOL) && (rb < MHTC_POOL) &&
                     ((ra == rb) ||
-                     ((fabs(st->pool[ra].p_detect - st->pool[rb].p_detect) <= MHTC_SHARE_PD) &&
+                     ((fabs(st->pool[ra].p_detect - st->pool[rb].p_detect) <= pd_max) &&
                       (mhtc_jeffreys(ws->pred_mu[ra], ws->pred_s[ra], ws->pred_mu[rb], ws->pred_s[rb], d) <=
-                       st->cfg.share_jeffreys)));
+                       jeffreys_max)));
             used[k] = used[k] || found;
         }
         if (!found) {
@@ -541,7 +548,9 @@ static void mhtc_expand_all(mhtc_state_t *st, const em_data_t *data, double volu
         }
         size_t donor = p;
         for (size_t r = 0u; (r < p) && (donor == p); ++r) {
-            donor = (fitted[r] && mhtc_prior_close(st, ws, data->d, r, p)) ? r : p;
+            donor = (fitted[r] && mhtc_priors_within(st, ws, data->d, r, p, st->cfg.share_jeffreys, MHTC_SHARE_PD))
+                        ? r
+                        : p;
         }
         fitted[p] = (donor == p);
         const uint32_t pruned0 = st->stats.models_pruned;

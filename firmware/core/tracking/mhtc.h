@@ -60,6 +60,7 @@
 #ifndef MHTC_SHARE_JEFFREYS_DEFAULT
 #define MHTC_SHARE_JEFFREYS_DEFAULT 0.01 ///< default of mhtc_config_t.share_jeffreys (docs/mhtc.md)
 #endif
+#define MHTC_WARM_JEFFREYS_DEFAULT HUGE_VAL ///< default of mhtc_config_t.warm_jeffreys (docs/mhtc.md)
 #define MHTC_SHARE_PD 0.05                  ///< largest |ΔP_d| of a shared target (enters ω_j, eq. 3.9)
 #define MHTC_ID_FALSE (-1)                   ///< "false cluster" in assignment lists and labels
 /// Q = q·I default for waveforms in µV: (10 µV)² per sample and interval, calibrated on
@@ -102,10 +103,12 @@ typedef struct {
                                  ///< MHTC_SHARE_PD) reuses that parent's EM fits, re-evaluated under its
                                  ///< own prior (ζ, log-posterior, evidence, associations); 0 = exact
                                  ///< sharing only (MHTC_SHARE_JEFFREYS_DEFAULT)
-    bool warm_start;             ///< a parent's model class G that is fitted starts EM from an earlier
-                                 ///< parent's fit of class G with as many tracks (then converges under
-                                 ///< its own prior), not from the §3.3.4 seeds; seeds if none or if that
-                                 ///< fit fails (default true, docs/mhtc.md)
+    double warm_jeffreys;        ///< warm start (docs/mhtc.md): a parent's model class G that is fitted starts
+                                 ///< EM from the fit of class G of an earlier parent whose targets each match
+                                 ///< one of its own within this symmetric KL divergence (nats), then
+                                 ///< converges under its own prior; else (or if that fit fails) from the
+                                 ///< §3.3.4 seeds. 0 = off, HUGE_VAL = any parent with as many tracks
+                                 ///< (MHTC_WARM_JEFFREYS_DEFAULT)
 } mhtc_config_t;
 
 /// One track record (shared by every hypothesis that references it).
@@ -156,7 +159,7 @@ typedef struct {
     uint32_t murty_solves;     ///< LAP solves inside Murty (benchmark figure)
     uint32_t models_shared;    ///< model hypotheses copied from a parent with the same track records (no EM)
     uint32_t models_reused;    ///< model hypotheses reusing a similar parent's EM fit (share_jeffreys)
-    uint32_t models_warm;      ///< EM fits started from another parent's fit (warm_start)
+    uint32_t models_warm;      ///< EM fits started from another parent's fit (warm_jeffreys)
 } mhtc_stats_t;
 
 /// Tracker state of one electrode (persistent between intervals).
