@@ -60,7 +60,9 @@
 #ifndef MHTC_SHARE_JEFFREYS_DEFAULT
 #define MHTC_SHARE_JEFFREYS_DEFAULT 0.01 ///< default of mhtc_config_t.share_jeffreys (docs/mhtc.md)
 #endif
+#ifndef MHTC_WARM_JEFFREYS_DEFAULT
 #define MHTC_WARM_JEFFREYS_DEFAULT HUGE_VAL ///< default of mhtc_config_t.warm_jeffreys (docs/mhtc.md)
+#endif
 #define MHTC_SHARE_PD 0.05                  ///< largest |ΔP_d| of a shared target (enters ω_j, eq. 3.9)
 #define MHTC_ID_FALSE (-1)                   ///< "false cluster" in assignment lists and labels
 /// Q = q·I default for waveforms in µV: (10 µV)² per sample and interval, calibrated on
