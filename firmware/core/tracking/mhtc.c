@@ -222,14 +222,19 @@ static size_t mhtc_warm_donor(const mhtc_state_t *st, const mhtc_workspace_t *ws
     return MHTC_NO_SLOT;
 }
 
-/* Steps 4-5 for one model class: MAP-EM under this parent's prior (ws->cl.prior), started
- * from a warm donor's Θ̂ when there is one, else from the targets' seeds (§3.3.4); labels. */
+/* Steps 4-5 for one model class: MAP-EM under this parent's prior (ws->cl.prior); labels.
+ * A class with more clusters than the parent has tracks starts from a warm donor's Θ̂ when
+ * there is one: its §3.3.4 seed splits a group at a gap, a heuristic that carries nothing of
+ * the parent, and EM then creeps along the split's flat ridge (docs/mhtc.md). A class with at
+ * most as many clusters as tracks keeps its seeds: they are the parent's own targets, and
+ * warm-starting those too made the interval's hypotheses alike and cost closed-loop ID
+ * consistency (docs/tracking-eval.md). */
 static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws,
                            mhtc_model_t *m)
 {
     cluster_workspace_t *c = &ws->cl;
     m->usable = false;
-    const size_t warm = mhtc_warm_donor(st, ws, data->d, m->g, m->parent);
+    const size_t warm = (m->g > nt) ? mhtc_warm_donor(st, ws, data->d, m->g, m->parent) : MHTC_NO_SLOT;
     md_status_t fs = MD_E_ARG;
     if (warm != MHTC_NO_SLOT) {
         fs = em_fit_from(data, &c->outlier, &c->prior, &ws->model[warm].fit.params, &st->cfg.em, c->z, &m->fit);

@@ -105,12 +105,12 @@ typedef struct {
                                  ///< MHTC_SHARE_PD) reuses that parent's EM fits, re-evaluated under its
                                  ///< own prior (ζ, log-posterior, evidence, associations); 0 = exact
                                  ///< sharing only (MHTC_SHARE_JEFFREYS_DEFAULT)
-    double warm_jeffreys;        ///< warm start (docs/mhtc.md): a parent's model class G that is fitted starts
-                                 ///< EM from the fit of class G of an earlier parent whose targets each match
-                                 ///< one of its own within this symmetric KL divergence (nats), then
-                                 ///< converges under its own prior; else (or if that fit fails) from the
-                                 ///< §3.3.4 seeds. 0 = off, HUGE_VAL = any parent with as many tracks
-                                 ///< (MHTC_WARM_JEFFREYS_DEFAULT)
+    double warm_jeffreys;        ///< warm start (docs/mhtc.md): a parent's model class G > J (its tracks) that
+                                 ///< is fitted starts EM from the fit of class G of an earlier parent whose
+                                 ///< targets each match one of its own within this symmetric KL divergence
+                                 ///< (nats), then converges under its own prior; else (or if that fit
+                                 ///< fails) from the §3.3.4 seeds. 0 = off, HUGE_VAL = any parent with as
+                                 ///< many tracks (MHTC_WARM_JEFFREYS_DEFAULT)
 } mhtc_config_t;
 
 /// One track record (shared by every hypothesis that references it).
