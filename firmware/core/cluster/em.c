@@ -613,11 +613,14 @@ static bool em_squarem_cycle(const em_data_t *data, const em_outlier_t *outlier,
     return true;
 }
 
-/* EM (SQUAREM-accelerated) from the Θ in out->params to convergence or the bound; r is
- * the outcome of the initialisation. */
+/* EM (SQUAREM-accelerated) to convergence or the bound, from the hard partition seed_labels
+ * into g groups, or (seed_labels NULL) from the Θ in out->params. One frame for the
+ * initialisation and the iteration: the stack bound is the larger of the two, not the sum. */
 static md_status_t em_run(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
-                          const em_options_t *opt, double *z, em_reason_t r, em_fit_t *out)
+                          const em_options_t *opt, double *z, const uint8_t *seed_labels, size_t g,
+                          em_fit_t *out)
 {
+    em_reason_t r = (seed_labels != NULL) ? em_init_params(data, seed_labels, g, &out->params) : EM_OK;
     em_run_t s;
     memset(&s, 0, sizeof s);
     if ((r == EM_OK) && !em_evaluate(data, outlier, prior, &out->params, &s.cache, z, &s.mom, out)) {
@@ -659,8 +662,7 @@ md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_
     if ((double)data->n < (double)g * EM_MIN_POINTS_PER_CLUSTER(data->d)) {
         return em_fail(out, MD_E_DEGENERATE, EM_FAIL_TOO_FEW_POINTS);
     }
-    const em_reason_t r = em_init_params(data, seed_labels, g, &out->params);
-    return em_run(data, outlier, prior, opt, z, r, out);
+    return em_run(data, outlier, prior, opt, z, seed_labels, g, out);
 }
 
 /* A starting Θ that the iteration can take: finite, π in range, λ > 0. */
@@ -694,7 +696,7 @@ md_status_t em_fit_from(const em_data_t *data, const em_outlier_t *outlier, cons
         return em_fail(out, MD_E_DEGENERATE, EM_FAIL_TOO_FEW_POINTS);
     }
     out->params = *start;
-    return em_run(data, outlier, prior, opt, z, EM_OK, out);
+    return em_run(data, outlier, prior, opt, z, NULL, start->g, out);
 }
 
 void em_labels(const double *z, size_t n, size_t g, uint8_t *label)
