@@ -47,7 +47,7 @@ static md_status_t evidence_by_g(const em_data_t *a, const em_outlier_t *b, cons
          : (d->g == 3u) ? evidence_G3(a, b, d, f) : evidence_G4(a, b, d, f);
 }
 '''
-anchor = '/* A fitted model of class g of an earlier parent with nt tracks'
+anchor = 'static size_t mhtc_warm_donor('
 assert anchor in s
 s = s.replace(anchor, wr + anchor, 1)
 for old, new in (('fs = em_fit_from(data,', 'fs = em_fit_from_by_g(data,'),
