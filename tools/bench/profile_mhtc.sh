@@ -10,6 +10,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 rev="${1:-HEAD}"
 work="${2:-/tmp/md-profile-mhtc}"
+mkdir -p "$work" && work="$(cd "$work" && pwd)" # absolute: the build below runs from $work/src
 rm -rf "$work"
 mkdir -p "$work/src"
 git archive "$rev" | tar -x -C "$work/src"
