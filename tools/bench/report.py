@@ -184,12 +184,14 @@ def main() -> int:
       "one evidence data part per EM fit, finished under every prior that evaluates it; d = 2 Hessian pass "
       "written out (commits a55bae3, e57e9cd) | 54,585,800 | 31,342,480 | 73,429,560 | |")
     w("| md_exp (table-driven e^x) and one log per E-step/evidence pass | 49,803,520 | 28,296,640 | 68,647,280 | |")
-    w("| warm start of a parent's fits from an earlier parent's (commit 6531ae9; E-steps per step 305 → 176) | "
-      "32,507,080 | 28,295,360 | 51,350,800 | |")
+    w("| warm start of every model class from an earlier parent's fit (commit 6531ae9; E-steps per step 305 → 176; "
+      "later restricted to the split classes, last row) | 32,507,080 | 28,295,360 | 51,350,800 | |")
     w("| evidence folds four point gradients per pass over H; normalisers once per iteration; one Cholesky per "
       "component | 30,750,800 | 26,621,320 | 49,607,840 | |")
     w(f"| **now: + detection rewritten for the M7, bit-identical output (detect 16.61 M → {det / 1e6:.2f} M, "
-      f"commit 7d6d171)** | {mh:,} | {int(m7.get('cluster', {}).get('instr', '0') or 0):,} | {int(tot_m7):,} | "
+      f"commit 7d6d171); warm start only for the classes G > J whose seed is a split (commit 9a514d6: warming "
+      f"every class cost closed-loop ID consistency, docs/tracking-eval.md)** | {mh:,} | "
+      f"{int(m7.get('cluster', {}).get('instr', '0') or 0):,} | {int(tot_m7):,} | "
       f"{float(host.get('mhtc', {}).get('median_ms', 'nan')):.0f} |")
     w("")
     w("Quality guard, MHTC (docs/tracking-eval.md, 5 scenarios; final-lineage ID consistency / spurious tracks, "
