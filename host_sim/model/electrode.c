@@ -99,6 +99,7 @@ static void electrode_update_model(sim_electrode_t *el, uint64_t s, bool render)
         /* closest approach on the path since the last update (tip passes the soma level) */
         const double dz_min = (dz * el->prev_dz[k] <= 0.0) ? 0.0 : fmin(fabs(dz), fabs(el->prev_dz[k]));
         el->prev_dz[k] = dz;
+        el->closest_um[k] = fmin(el->closest_um[k], hypot(r, dz_min));
         if (hypot(r, dz_min) < m->damage_um) {
             electrode_die(el, k, t, hypot(r, dz_min));
             continue;
@@ -154,6 +155,7 @@ md_status_t sim_electrode_init(sim_electrode_t *el, const sim_electrode_config_t
     const double disp = tissue_displacement_um(&el->tissue);
     for (uint32_t k = 0u; k < el->n_neurons; ++k) {
         el->prev_dz[k] = el->act.position_um - (neuron_depth_um(&el->neurons[k], 0.0) + disp);
+        el->closest_um[k] = INFINITY;
     }
     electrode_update_model(el, 0u, false);
     return MD_OK;
@@ -370,6 +372,7 @@ size_t sim_electrode_truth(const sim_electrode_t *el, sim_neuron_truth_t *out, s
         o->alive = n->alive;
         o->died_s = n->died_s;
         o->distance_um = hypot(hypot(n->p.x_um, n->p.y_um), tip - o->depth_um);
+        o->closest_um = fmin(el->closest_um[k], o->distance_um);
         o->snr = sim_electrode_snr_at(el, (uint32_t)k, tip);
         /* A(d) decreases with d = hypot(r, dz): the single SNR maximum along the track is at dz = 0 */
         o->snr_peak_depth_um = o->depth_um;

@@ -76,6 +76,7 @@ typedef struct {
     bool alive;
     double died_s;            ///< -1 when alive
     double distance_um;       ///< tip to soma
+    double closest_um;        ///< smallest tip-soma distance so far (along the path, as the damage check)
     double snr;               ///< true SNR at the tip's current depth (0 when dead)
     double snr_peak_depth_um; ///< tip depth of the maximum of its SNR-vs-depth curve
     double snr_peak;          ///< SNR there
@@ -93,6 +94,7 @@ typedef struct {
     double tmpl_ptp[SIM_MAX_NEURONS];   ///< ptp (uV) of each current template
     bool in_range[SIM_MAX_NEURONS];
     double prev_dz[SIM_MAX_NEURONS];
+    double closest_um[SIM_MAX_NEURONS]; ///< closest approach so far, per neuron (ground truth)
     sim_rng_t noise_rng, mua_rng, art_rng;
     sim_noise_filter_t filt;
     double fs;

@@ -84,9 +84,9 @@ void sim_world_truth_snapshot(sim_world_t *w, const char *label)
         for (size_t k = 0u; k < n; ++k) {
             (void)fprintf(w->truth,
                           "%s{\"neuron\":%" PRIu32 ",\"depth_um\":%.4f,\"alive\":%s,\"distance_um\":%.4f"
-                          ",\"snr\":%.4f,\"snr_peak_depth_um\":%.4f,\"snr_peak\":%.4f}",
+                          ",\"closest_um\":%.4f,\"snr\":%.4f,\"snr_peak_depth_um\":%.4f,\"snr_peak\":%.4f}",
                           k ? "," : "", tr[k].id, tr[k].depth_um, tr[k].alive ? "true" : "false",
-                          tr[k].distance_um, tr[k].snr, tr[k].snr_peak_depth_um, tr[k].snr_peak);
+                          tr[k].distance_um, tr[k].closest_um, tr[k].snr, tr[k].snr_peak_depth_um, tr[k].snr_peak);
         }
         (void)fprintf(w->truth, "]}\n");
     }

@@ -13,7 +13,7 @@
 ///   spike    {electrode, sample, neuron, amp_uv}   (neuron -1: large artifact)
 ///   death    {electrode, neuron, t_s, distance_um}
 ///   state    {t_s, label, electrode, tip_um, neurons:[{neuron, depth_um,
-///             alive, distance_um, snr, snr_peak_depth_um, snr_peak}]}
+///             alive, distance_um, closest_um, snr, snr_peak_depth_um, snr_peak}]}
 /// Spikes appear as they are generated; `state` lines when the caller asks
 /// (sim_world_truth_snapshot, e.g. once per recording interval).
 #ifndef SIM_WORLD_H

@@ -33,6 +33,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 DBC = os.path.join(ROOT, "common", "protocol", "microdrive.dbc")
 
 SFSM_NEURON_ISOLATED = 3          # firmware/core/control/sfsm.h
+TLM_F_GUARD_LIMITED = 0x0200      # firmware/app/md_cycle.h MD_TLM_F_GUARD_LIMITED
+TLM_F_GUARD_RETRACT = 0x0400      # MD_TLM_F_GUARD_RETRACT
 MATCH_WINDOW_S = 0.4e-3           # SpikeInterface's default delta_time
 TRACK_OUTLIER, TRACK_UNLABELLED = -1, -2
 
@@ -324,6 +326,19 @@ def final_state(ivs):
     return None, None
 
 
+def closest_approach(fstate, deaths):
+    """Per neuron, the smallest tip-soma distance of the session: the
+    simulator's running minimum in the last counted state, and the distance of
+    every death (a neuron dies below the damage radius)."""
+    out = {}
+    for n in (fstate or {}).get("neurons", []):
+        if "closest_um" in n:
+            out[n["neuron"]] = round(float(n["closest_um"]), 3)
+    for d in deaths:
+        out[d["neuron"]] = round(min(out.get(d["neuron"], math.inf), float(d["distance_um"])), 3)
+    return out
+
+
 def isolation_metrics(e, ivs, track_neuron, truth):
     states = [int(iv.status["SfsmState"]) for iv in ivs]
     iso = [s == SFSM_NEURON_ISOLATED for s in states]
@@ -340,7 +355,9 @@ def isolation_metrics(e, ivs, track_neuron, truth):
     if fstate is not None and dominant in neurons:
         dist = abs(fstate["tip_um"] - neurons[dominant]["snr_peak_depth_um"])
     end_us = max([iv.end_us for iv in ivs if iv.end_us is not None] or [0])
-    damaged = sum(1 for d in truth["deaths"].get(e, []) if d["t_s"] * 1e6 <= end_us)
+    deaths = [d for d in truth["deaths"].get(e, []) if d["t_s"] * 1e6 <= end_us]
+    damaged = len(deaths)
+    closest = closest_approach(fstate, deaths)
     held, reiso = None, 0
     if first is not None:
         first_neuron = track_neuron.get(int(ivs[first].status["DominantTrack"]))
@@ -360,6 +377,10 @@ def isolation_metrics(e, ivs, track_neuron, truth):
         "final_tip_um": fstate["tip_um"] if fstate else None,
         "final_state": states[-1] if states else None,
         "neurons_damaged": damaged,
+        "closest_approach_um": min(closest.values()) if closest else None,
+        "closest_approach_by_neuron": {str(k): v for k, v in sorted(closest.items())},
+        "guard_limited_cycles": sum(1 for iv in ivs if int(iv.status["Flags"]) & TLM_F_GUARD_LIMITED),
+        "guard_retractions": sum(1 for iv in ivs if int(iv.status["Flags"]) & TLM_F_GUARD_RETRACT),
         "held_fraction": held,
         "reisolations": reiso,
         "end_time_s": end_us / 1e6,
