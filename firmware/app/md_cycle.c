@@ -56,6 +56,17 @@ static void servo_cfg_from(const md_params_t *p, md_servo_config_t *cfg)
     cfg->rate_hz = (uint16_t)md_params_get_u32(p, MD_P_SERVO_RATE_HZ);
 }
 
+static void guard_cfg_from(const md_params_t *p, ag_config_t *cfg)
+{
+    ag_config_default(cfg);
+    cfg->growth_stop = md_params_get(p, MD_P_GUARD_GROWTH_STOP);
+    cfg->amp_slow = md_params_get(p, MD_P_GUARD_AMP_SLOW);
+    cfg->amp_floor = fmin(cfg->amp_floor, cfg->amp_slow);
+    cfg->amp_stop = md_params_get(p, MD_P_GUARD_AMP_STOP);
+    cfg->step_near_um = md_params_get(p, MD_P_GUARD_STEP_NEAR_UM);
+    cfg->retract_um = md_params_get(p, MD_P_GUARD_RETRACT_UM);
+}
+
 static void mhtc_cfg_from(const md_params_t *p, mhtc_config_t *cfg)
 {
     mhtc_config_default(cfg, md_process_tracker(p));
@@ -76,6 +87,11 @@ static void apply_params(md_electrode_t *el, const md_node_t *node)
     md_servo_config_t vc;
     servo_cfg_from(&node->params, &vc);
     (void)md_servo_configure(&el->servo, &vc);
+    ag_config_t gc;
+    guard_cfg_from(&node->params, &gc);
+    if (ag_config_check(&gc) == MD_OK) {
+        el->guard.cfg = gc; /* history and barrier stay: they describe the tissue */
+    }
     mhtc_config_t mc;
     mhtc_cfg_from(&node->params, &mc);
     if (mc.tracker != el->mhtc.cfg.tracker) {
@@ -98,15 +114,18 @@ md_status_t md_cycle_init(md_cycle_t *c, const md_node_t *node)
     sfsm_config_t sc;
     md_servo_config_t vc;
     mhtc_config_t mc;
+    ag_config_t gc;
     sfsm_cfg_from(&node->params, &sc);
     servo_cfg_from(&node->params, &vc);
     mhtc_cfg_from(&node->params, &mc);
+    guard_cfg_from(&node->params, &gc);
     for (size_t e = 0u; e < MD_ELECTRODES; ++e) {
         md_electrode_t *el = &c->el[e];
         sc_table_init(&el->curves);
         md_status_t st = mhtc_init(&el->mhtc, &mc);
         st = (st == MD_OK) ? sfsm_init(&el->sfsm, &sc) : st;
         st = (st == MD_OK) ? md_servo_init(&el->servo, &vc) : st;
+        st = (st == MD_OK) ? ag_init(&el->guard, &gc) : st;
         if (st != MD_OK) {
             return st;
         }
@@ -370,6 +389,45 @@ static double decide(md_electrode_t *el, const md_node_t *node, const md_process
     return out.step_um;
 }
 
+_Static_assert(AG_UNITS_MAX >= MHTC_TARGETS_MAX + 1u, "the guard sees every track and the robust amplitude");
+
+/* The guard's units: the robust amplitude of all detections (no tracker) and
+ * the SNR of every track the leading hypothesis detected this interval. */
+static size_t guard_units(const md_workspace_t *ws, const md_process_out_t *po, ag_unit_t *unit)
+{
+    size_t n = 0u;
+    unit[n++] = (ag_unit_t){AG_UNIT_RAW, po->amp};
+    for (size_t j = 0u; j < ws->res.n_tracks && j < MHTC_TARGETS_MAX; ++j) {
+        if (ws->res.track[j].cluster > 0u && ws->track_snr[j] > 0.0) {
+            unit[n++] = (ag_unit_t){ws->res.track[j].id, ws->track_snr[j]};
+        }
+    }
+    return n;
+}
+
+/* Approach guard after the SFSM (approach_guard.h): may shorten, cancel or
+ * reverse the step, in every state and with every tracker. Computed and
+ * reported even when disabled, so its effect can be measured. */
+static double guard(md_electrode_t *el, const md_node_t *node, const md_workspace_t *ws, const md_process_out_t *po,
+                    double depth, double step)
+{
+    ag_unit_t unit[AG_UNITS_MAX];
+    const ag_input_t in = {unit, guard_units(ws, po, unit), depth, step};
+    ag_output_t out;
+    if (ag_step(&el->guard, &in, &out) != MD_OK) {
+        el->flags |= MD_TLM_F_GUARD_LIMITED;
+        el->guard_limited++;
+        return 0.0; /* the guard cannot judge: hold */
+    }
+    el->flags |= (out.n_ceilings > 0u) ? MD_TLM_F_GUARD_CEILING : 0u;
+    if (out.action == AG_PASS || md_params_get_u32(&node->params, MD_P_GUARD_ENABLE) == 0u) {
+        return step;
+    }
+    el->flags |= MD_TLM_F_GUARD_LIMITED | ((out.action == AG_RETRACT) ? MD_TLM_F_GUARD_RETRACT : 0u);
+    el->guard_limited++;
+    return out.step_um;
+}
+
 static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
 {
     md_electrode_t *el = &c->el[c->active];
@@ -391,11 +449,12 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     el->dominant = po.dominant;
     el->snr = po.snr;
     el->iqm = po.iqm;
+    el->guard_amp = po.amp;
     double depth = 0.0;
     double step = 0.0;
     if (md_servo_depth_um(&el->servo, &depth) == MD_OK) {
         el->depth_um = depth;
-        step = decide(el, node, &po, depth);
+        step = guard(el, node, &c->ws, &po, depth, decide(el, node, &po, depth));
     } else {
         el->flags |= MD_TLM_F_NO_DEPTH; /* no decision without a depth */
     }

@@ -32,6 +32,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "control/approach_guard.h"
 #include "control/sfsm.h"
 #include "control/snr_curve.h"
 #include "features/pca.h"
@@ -55,6 +56,9 @@ _Static_assert(MD_CYCLE_D <= MD_FEAT_DIM_MAX, "feature dimension within the conf
 #define MD_TLM_F_LAST_MOVE_FAILED 0x0040u ///< the previous move ended otherwise (see moves_failed)
 #define MD_TLM_F_LOCKSTEP 0x0080u         ///< simulator lockstep: cycle time is SIM_CLOCK
 #define MD_TLM_F_NO_DEPTH 0x0100u         ///< no calibrated Hall depth: no decision, no motion
+#define MD_TLM_F_GUARD_LIMITED 0x0200u    ///< the approach guard shortened, cancelled or reversed the SFSM's step
+#define MD_TLM_F_GUARD_RETRACT 0x0400u    ///< the approach guard ordered a retraction
+#define MD_TLM_F_GUARD_CEILING 0x0800u    ///< an approach-guard ceiling holds after this cycle
 #define MD_TLM_REASON_SHIFT 16u           ///< bits 16..23: sfsm_reason_t of the decision
 
 /// Where one electrode is in its cycle.
@@ -78,6 +82,8 @@ typedef struct {
     mhtc_state_t mhtc;          ///< tracker (thesis ch. 4)
     sc_table_t curves;          ///< SNR curve per track (§2.2.3)
     sfsm_t sfsm;                ///< supervisory state machine (§2.2.4)
+    ag_state_t guard;           ///< approach guard after the SFSM (approach_guard.h)
+    double guard_amp;           ///< robust amplitude of the last processed interval
     md_servo_t servo;           ///< depth servo
     md_cycle_phase_t phase;
     uint16_t cycle;             ///< cycles completed (TLM Cycle, wraps)
@@ -100,7 +106,7 @@ typedef struct {
     uint32_t flags;             ///< MD_TLM_F_* of the last cycle
     md_servo_result_t last_move;
     /* counters */
-    uint32_t cycles, skipped, rec_failed, moves, moves_failed, inhibited, timeouts;
+    uint32_t cycles, skipped, rec_failed, moves, moves_failed, inhibited, timeouts, guard_limited;
 } md_electrode_t;
 
 /// Outputs of the signal chain of the interval being processed, and the

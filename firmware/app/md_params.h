@@ -64,6 +64,12 @@ typedef enum {
     MD_P_SFSM_SNR_MIN,               ///< SFSM noise floor: tracks below this SNR are never dominant
     MD_P_MHTC_Q_UV,                  ///< MHTC process noise std per waveform sample and interval
     MD_P_TRACKER,                    ///< tracker: 0 MHTC, 1 MAP-NN, 2 ML-NN, 3 GNN (mhtc_tracker_t)
+    MD_P_GUARD_ENABLE,               ///< approach guard limits motion (0: computed and reported only)
+    MD_P_GUARD_GROWTH_STOP,          ///< approach guard: ln-amplitude growth per µm that blocks advancing
+    MD_P_GUARD_AMP_SLOW,             ///< approach guard: amplitude from which advances are shortened
+    MD_P_GUARD_AMP_STOP,             ///< approach guard: amplitude that blocks advancing
+    MD_P_GUARD_STEP_NEAR_UM,         ///< approach guard: longest advance at or above guard_amp_slow
+    MD_P_GUARD_RETRACT_UM,           ///< approach guard: retraction when the unit climbs at a barrier
     /* diagnostics (0x3xxx), read-only */
     MD_P_NODE_STATE,
     MD_P_ESTOP_LATCHED,

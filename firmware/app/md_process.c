@@ -131,6 +131,12 @@ md_status_t md_process_interval(md_workspace_t *ws, md_electrode_t *el, double d
     memset(out, 0, sizeof *out);
     memset(ws->track_snr, 0, sizeof ws->track_snr);
     md_status_t st = chain(ws);
+    if (st == MD_OK) {
+        /* Every window, outliers included: the approach guard must not depend
+         * on the tracker. Before the tracker, which a failure leaves untouched. */
+        st = ag_robust_amplitude_i16(&ws->win.wave[0][0], ws->win.n, MD_WAVE_LEN_MAX, ws->win.d_w, ws->win.gain,
+                                     ws->noise_rms_uv, el->guard.cfg.top_k, &out->amp);
+    }
     if (st != MD_OK) {
         return st;
     }

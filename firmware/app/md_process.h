@@ -26,6 +26,7 @@ typedef struct {
     uint8_t dominant_cluster;   ///< its cluster in the leading model (1..G)
     double snr;                 ///< its SNR (peak-to-peak / noise RMS)
     double iqm;                 ///< its isolation distance ID_g (sqrt), 0 if undefined
+    double amp;                 ///< robust amplitude of all detections (approach guard), noise RMS units
 } md_process_out_t;
 
 /// Tracker selected by the `tracker` parameter (0 MHTC, 1 MAP-NN, 2 ML-NN,
@@ -40,7 +41,8 @@ md_status_t md_process_begin(md_workspace_t *ws, const md_electrode_t *el, uint3
 /// Streams samples of the interval. Errors as sp_push.
 md_status_t md_process_push(md_workspace_t *ws, const int16_t *x, size_t n);
 
-/// Ends the interval and runs every stage. MD_OK, or the first stage's
+/// Ends the interval and runs every stage, and the robust amplitude of all
+/// detections with the k of the electrode's approach guard. MD_OK, or the first stage's
 /// error (MD_E_DEGENERATE: too few noise snippets or a flat interval;
 /// MD_E_NUMERIC / MD_E_NOCONVERGE from PCA or the tracker ...). O(tracker step).
 md_status_t md_process_interval(md_workspace_t *ws, md_electrode_t *el, double duration_s, double min_rate_hz,

@@ -1,0 +1,369 @@
+/// @file approach_guard.c
+/// Approach guard. See approach_guard.h; defaults and measurements in
+/// docs/sfsm.md ("Approach guard").
+#include "control/approach_guard.h"
+
+#include <math.h>
+#include <string.h>
+
+void ag_config_default(ag_config_t *cfg)
+{
+    if (cfg == NULL) {
+        return;
+    }
+    cfg->growth_stop = 0.022;
+    cfg->baseline_min_um = 15.0;
+    cfg->amp_floor = 12.0;
+    cfg->amp_slow = 15.0;
+    cfg->amp_stop = 80.0;
+    cfg->step_near_um = 10.0;
+    cfg->climb_frac = 0.15;
+    cfg->climb_free_frac = 0.35;
+    cfg->retract_um = 10.0;
+    cfg->still_um = 3.0;
+    cfg->top_k = 5u;
+}
+
+static bool positive(double v) { return isfinite(v) && v > 0.0; }
+
+md_status_t ag_config_check(const ag_config_t *cfg)
+{
+    if (cfg == NULL || !positive(cfg->growth_stop) || !positive(cfg->baseline_min_um) ||
+        !positive(cfg->amp_floor) || !positive(cfg->amp_slow) || !positive(cfg->amp_stop) ||
+        !positive(cfg->step_near_um) || !positive(cfg->climb_frac) || !(cfg->climb_free_frac >= cfg->climb_frac) || !positive(cfg->retract_um) ||
+        !positive(cfg->still_um) ||
+        cfg->amp_floor > cfg->amp_slow || !(cfg->amp_slow < cfg->amp_stop) || cfg->top_k < 1u ||
+        cfg->top_k > AG_TOP_K_MAX) {
+        return MD_E_ARG;
+    }
+    return MD_OK;
+}
+
+md_status_t ag_init(ag_state_t *s, const ag_config_t *cfg)
+{
+    if (s == NULL || ag_config_check(cfg) != MD_OK) {
+        return MD_E_ARG;
+    }
+    memset(s, 0, sizeof *s);
+    s->cfg = *cfg;
+    return MD_OK;
+}
+
+/* Peak-to-peak of one window, in counts. */
+static int32_t window_ptp(const int16_t *w, size_t d_w)
+{
+    int32_t lo = w[0];
+    int32_t hi = w[0];
+    for (size_t i = 1u; i < d_w; ++i) {
+        lo = (w[i] < lo) ? w[i] : lo;
+        hi = (w[i] > hi) ? w[i] : hi;
+    }
+    return hi - lo;
+}
+
+/* Inserts v into top[0..k) kept in descending order (k-th largest last). */
+static void keep_top(int32_t *top, size_t k, size_t *filled, int32_t v)
+{
+    size_t pos = (*filled < k) ? *filled : k;
+    if (pos == k && v <= top[k - 1u]) {
+        return;
+    }
+    if (pos == k) {
+        pos = k - 1u; /* the smallest falls out */
+    } else {
+        (*filled)++;
+    }
+    while (pos > 0u && top[pos - 1u] < v) {
+        top[pos] = top[pos - 1u];
+        --pos;
+    }
+    top[pos] = v;
+}
+
+md_status_t ag_robust_amplitude_i16(const int16_t *wave, size_t n, size_t stride, size_t d_w, double gain,
+                                    double noise_rms_uv, uint8_t k, double *amp)
+{
+    if (amp == NULL || (wave == NULL && n > 0u) || d_w < 2u || d_w > stride || k < 1u || k > AG_TOP_K_MAX ||
+        !positive(gain) || !positive(noise_rms_uv)) {
+        return MD_E_ARG;
+    }
+    *amp = 0.0;
+    if (n < (size_t)k) {
+        return MD_OK;
+    }
+    int32_t top[AG_TOP_K_MAX];
+    size_t filled = 0u;
+    for (size_t j = 0u; j < n; ++j) {
+        keep_top(top, k, &filled, window_ptp(&wave[j * stride], d_w));
+    }
+    *amp = (double)top[k - 1u] * gain / noise_rms_uv;
+    return MD_OK;
+}
+
+/* Amplitude of unit `id` in a snapshot; 0 if it is not there. */
+static double unit_amp(const ag_snapshot_t *snap, uint32_t id)
+{
+    for (uint8_t u = 0u; u < snap->n; ++u) {
+        if (snap->unit[u].id == id) {
+            return snap->unit[u].amp;
+        }
+    }
+    return 0.0;
+}
+
+static double largest_amp(const ag_snapshot_t *snap)
+{
+    double a = 0.0;
+    for (uint8_t u = 0u; u < snap->n; ++u) {
+        a = fmax(a, snap->unit[u].amp);
+    }
+    return a;
+}
+
+static const ag_snapshot_t *history_back(const ag_state_t *s, uint8_t i)
+{
+    return &s->hist[(s->hist_head + AG_HISTORY - 1u - i) % AG_HISTORY];
+}
+
+/* Rule 1 for one unit: growth per µm of advance against the newest interval
+ * recorded at least baseline_min_um shallower that saw it. */
+static bool unit_growth(const ag_state_t *s, const ag_snapshot_t *now, const ag_unit_t *u, double *g)
+{
+    for (uint8_t i = 0u; i < s->hist_n; ++i) {
+        const ag_snapshot_t *then = history_back(s, i);
+        const double travel = now->depth_um - then->depth_um;
+        const double before = unit_amp(then, u->id);
+        if (travel >= s->cfg.baseline_min_um && before > 0.0) {
+            *g = log(u->amp / before) / travel;
+            return true;
+        }
+    }
+    return false;
+}
+
+static void push_history(ag_state_t *s, const ag_snapshot_t *now)
+{
+    s->hist[s->hist_head] = *now;
+    s->hist_head = (uint8_t)((s->hist_head + 1u) % AG_HISTORY);
+    s->hist_n = (s->hist_n < AG_HISTORY) ? (uint8_t)(s->hist_n + 1u) : s->hist_n;
+}
+
+static ag_ceiling_t *find_ceiling(ag_state_t *s, uint32_t id)
+{
+    for (uint8_t i = 0u; i < s->n_ceil; ++i) {
+        if (s->ceil[i].id == id) {
+            return &s->ceil[i];
+        }
+    }
+    return NULL;
+}
+
+/* A lower ceiling replaces a higher one; the growth kept is the larger. */
+static void set_ceiling(ag_state_t *s, uint32_t id, double amp, double growth)
+{
+    ag_ceiling_t *c = find_ceiling(s, id);
+    if (c == NULL && s->n_ceil < AG_UNITS_MAX) {
+        c = &s->ceil[s->n_ceil++];
+        *c = (ag_ceiling_t){id, amp, growth, 0u};
+        s->ceilings_set++;
+        return;
+    }
+    if (c != NULL) {
+        c->amp = fmin(c->amp, amp);
+        c->growth = fmax(c->growth, growth);
+    }
+}
+
+/* Rule 1: units steep on this advance and the one before get a ceiling. */
+static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out)
+{
+    ag_snapshot_t steep;
+    memset(&steep, 0, sizeof steep);
+    for (uint8_t k = 0u; k < now->n; ++k) {
+        const ag_unit_t *u = &now->unit[k];
+        double g = 0.0;
+        if (u->amp < s->cfg.amp_floor || !unit_growth(s, now, u, &g)) {
+            continue;
+        }
+        if (g > out->growth) {
+            out->growth = g;
+            out->growth_unit = u->id;
+        }
+        if (g >= s->cfg.growth_stop) {
+            if (unit_amp(&s->steep, u->id) > 0.0) {
+                set_ceiling(s, u->id, u->amp, g);
+            }
+            steep.unit[steep.n++] = (ag_unit_t){u->id, g};
+        }
+    }
+    s->steep = steep;
+}
+
+/* Rule 4: ceilings of units not seen for AG_HISTORY intervals lapse. */
+static void age_ceilings(ag_state_t *s, const ag_snapshot_t *now)
+{
+    uint8_t kept = 0u;
+    for (uint8_t i = 0u; i < s->n_ceil; ++i) {
+        ag_ceiling_t c = s->ceil[i];
+        c.unseen = (unit_amp(now, c.id) > 0.0) ? 0u : (uint8_t)(c.unseen + 1u);
+        if (c.unseen < AG_HISTORY) {
+            s->ceil[kept++] = c;
+        } else {
+            s->lapses++;
+        }
+    }
+    s->n_ceil = kept;
+}
+
+static double median3(double a, double b, double c)
+{
+    return fmax(fmin(a, b), fmin(fmax(a, b), c));
+}
+
+/* A unit's level at a standstill: the median of its amplitude in this
+ * interval and the two before, when all three were recorded at this depth
+ * and saw it (one noisy interval moves a median of three by little). */
+static bool still_level(const ag_state_t *s, const ag_snapshot_t *now, const ag_unit_t *u, double *level)
+{
+    if (s->hist_n < AG_STILL_INTERVALS - 1u) {
+        return false;
+    }
+    double a[AG_STILL_INTERVALS] = {u->amp, 0.0, 0.0};
+    for (uint8_t i = 0u; i + 1u < AG_STILL_INTERVALS; ++i) {
+        const ag_snapshot_t *then = history_back(s, i);
+        a[i + 1u] = unit_amp(then, u->id);
+        if (fabs(then->depth_um - now->depth_um) >= s->cfg.still_um || !(a[i + 1u] > 0.0)) {
+            return false;
+        }
+    }
+    *level = median3(a[0], a[1], a[2]);
+    return true;
+}
+
+/* Rule 3: a unit came closer while the electrode stood still. */
+static bool climbed(ag_state_t *s, const ag_snapshot_t *now, bool still)
+{
+    if (!still) {
+        s->still_ref.n = 0u;
+        return false;
+    }
+    bool up = false;
+    for (uint8_t k = 0u; k < now->n; ++k) {
+        const ag_unit_t *u = &now->unit[k];
+        double level = 0.0;
+        if (!still_level(s, now, u, &level) || level < s->cfg.amp_slow) {
+            continue;
+        }
+        const ag_ceiling_t *c = find_ceiling(s, u->id);
+        const double ref = unit_amp(&s->still_ref, u->id);
+        up = up || (c != NULL && level >= (1.0 + s->cfg.climb_frac) * c->amp);
+        up = up || (c == NULL && ref > 0.0 && level >= (1.0 + s->cfg.climb_free_frac) * ref);
+        if (!(ref > 0.0) && s->still_ref.n < AG_UNITS_MAX) {
+            s->still_ref.unit[s->still_ref.n] = (ag_unit_t){u->id, level};
+            s->still_ref.n++;
+        }
+    }
+    return up;
+}
+
+/* Rule 4: the longest advance that keeps every unit seen now below its
+ * ceiling (and amp_stop), predicted with the unit's growth. A ceiling unit
+ * not seen now limits nothing: tracker IDs come and go, and the robust
+ * amplitude, always seen, stands for the loudest unit. */
+static double ceiling_room_um(const ag_state_t *s, const ag_snapshot_t *now)
+{
+    double room = HUGE_VAL;
+    for (uint8_t i = 0u; i < s->n_ceil; ++i) {
+        const double a = unit_amp(now, s->ceil[i].id);
+        const double g = fmax(s->ceil[i].growth, s->cfg.growth_stop);
+        if (a > 0.0) {
+            room = fmin(room, (a < s->ceil[i].amp) ? log(s->ceil[i].amp / a) / g : 0.0);
+        }
+    }
+    for (uint8_t k = 0u; k < now->n; ++k) {
+        const double a = now->unit[k].amp;
+        room = fmin(room, (a < s->cfg.amp_stop) ? log(s->cfg.amp_stop / a) / s->cfg.growth_stop : 0.0);
+    }
+    return room;
+}
+
+/* Rules 3 to 5: the step. */
+static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double requested, bool still,
+                         ag_action_t *action)
+{
+    const ag_config_t *c = &s->cfg;
+    double step = requested;
+    *action = AG_PASS;
+    if (climbed(s, now, still)) {
+        s->still_ref.n = 0u;
+        s->retractions++;
+        *action = AG_RETRACT;
+        return fmin(step, -c->retract_um);
+    }
+    if (step > c->step_near_um && largest_amp(now) >= c->amp_slow) {
+        step = c->step_near_um;
+        *action = AG_SLOWED;
+    }
+    const double room = ceiling_room_um(s, now);
+    if (step > 0.0 && step > room) {
+        step = room;
+        *action = AG_BLOCKED;
+    }
+    return step;
+}
+
+static bool input_valid(const ag_input_t *in)
+{
+    if (!isfinite(in->depth_um) || !isfinite(in->step_um) || in->n_units > AG_UNITS_MAX ||
+        (in->unit == NULL && in->n_units > 0u)) {
+        return false;
+    }
+    for (size_t k = 0u; k < in->n_units; ++k) {
+        if (!isfinite(in->unit[k].amp) || in->unit[k].amp < 0.0) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/* The interval's units that were seen (amplitude > 0). */
+static void snapshot(const ag_input_t *in, ag_snapshot_t *now)
+{
+    memset(now, 0, sizeof *now);
+    now->depth_um = in->depth_um;
+    for (size_t k = 0u; k < in->n_units; ++k) {
+        if (in->unit[k].amp > 0.0) {
+            now->unit[now->n] = in->unit[k];
+            now->n++;
+        }
+    }
+}
+
+md_status_t ag_step(ag_state_t *s, const ag_input_t *in, ag_output_t *out)
+{
+    if (s == NULL || in == NULL || out == NULL) {
+        return MD_E_ARG;
+    }
+    memset(out, 0, sizeof *out);
+    s->cycles++;
+    if (!input_valid(in)) {
+        s->bad_inputs++;
+        out->action = AG_BAD_INPUT;
+        out->n_ceilings = s->n_ceil;
+        return MD_E_ARG;
+    }
+    ag_snapshot_t now;
+    snapshot(in, &now);
+    const double moved = (s->hist_n > 0u) ? now.depth_um - history_back(s, 0u)->depth_um : 0.0;
+    const bool still = s->hist_n > 0u && fabs(moved) < s->cfg.still_um;
+    age_ceilings(s, &now);
+    if (moved >= s->cfg.still_um) {
+        mark_steep(s, &now, out); /* judged on arrival after an advance only */
+    }
+    out->step_um = limit_step(s, &now, in->step_um, still, &out->action);
+    push_history(s, &now);
+    s->last_growth = out->growth;
+    s->limited += (out->action != AG_PASS) ? 1u : 0u;
+    out->n_ceilings = s->n_ceil;
+    return MD_OK;
+}

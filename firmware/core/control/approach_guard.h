@@ -1,0 +1,165 @@
+/// @file approach_guard.h
+/// Approach guard: a tracker-independent limit on electrode motion that keeps
+/// the tip away from the neurons it approaches (ours; the thesis leaves
+/// damage avoidance to Ω3, IQM >= γ3, which needs the tracker to see the
+/// neuron). It runs after the SFSM in every state and with every tracker,
+/// and may only shorten or cancel the SFSM's step, or retract.
+///
+/// What it reads, once per recording interval: the depth at which the
+/// interval was recorded and the amplitude of every *unit* it can tell apart:
+/// the interval's *robust amplitude* — the k-th largest peak-to-peak of all
+/// detected windows, outliers included, over the noise RMS — which needs no
+/// tracker and follows the loudest unit, and the SNR of each track the
+/// tracker reports (any tracker), which follows quieter units that the
+/// loudest one would mask. A unit is known by an id across intervals
+/// (AG_UNIT_RAW for the robust amplitude, the track id otherwise).
+///
+/// Why growth: a neuron's amplitude follows A(d) = A0 / (1 + d^2 / d0^2)
+/// (d tip–soma distance). Along the track, with r the neuron's lateral
+/// distance and x the axial distance still to go, ln A grows per µm of
+/// approach by 2x / (d0^2 + r^2 + x^2): at most 1/sqrt(d0^2 + r^2). A neuron
+/// on the path (r = 0) grows up to 1/d0; one the tip passes safely (r well
+/// above the damage radius) grows less. Amplitude alone cannot tell them
+/// apart (A0 is unknown), growth per µm can. The limits, with their defaults
+/// justified from measurements, are in docs/sfsm.md ("Approach guard").
+///
+/// Rules, every interval (a *ceiling* is an amplitude a unit may not be
+/// driven past):
+///  1. on arrival after an advance, per unit, growth g = ln(a / a_j) /
+///     (z - z_j) against the newest earlier interval j recorded at least
+///     baseline_min_um shallower that saw the unit; a unit (a >= amp_floor)
+///     whose growth reached growth_stop on two advances in a row is steep
+///     like a neuron on the path: its present amplitude becomes its ceiling;
+///  2. amp_stop is a ceiling for every unit, whatever its growth;
+///  3. a unit's level (median of its last AG_STILL_INTERVALS amplitudes, all
+///     at this depth; >= amp_slow) that climbed while the electrode stood
+///     still — the unit came closer: tissue relaxation, drift — retracts by
+///     retract_um: a climb to (1 + climb_frac) times its ceiling, or, for a
+///     unit without one, to (1 + climb_free_frac) times its first level at
+///     this standstill;
+///  4. an advance stops where the unit would reach its ceiling, predicted
+///     with its growth (at least growth_stop): no advance at the ceiling,
+///     and the electrode follows a unit that moves away. A ceiling whose
+///     unit was not seen for AG_HISTORY intervals lapses (it left, or an
+///     artefact burst ended), so a transient never freezes the search;
+///  5. advances are at most step_near_um once any unit reaches amp_slow;
+///     retractions are never shortened.
+/// Invalid input (non-finite) holds the electrode and is counted.
+///
+/// Memory: ag_state_t, fixed size, caller-owned. No I/O, no heap.
+#ifndef APPROACH_GUARD_H
+#define APPROACH_GUARD_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "common/md_status.h"
+#include "md_config.h"
+
+#define AG_HISTORY 8u                       ///< intervals kept for the growth rule
+#define AG_TOP_K_MAX 16u                    ///< largest k of the robust amplitude
+#define AG_UNITS_MAX (MD_MAX_TARGETS + 1u)  ///< units per interval: every track and the robust amplitude
+#define AG_UNIT_RAW UINT32_MAX              ///< unit id of the robust amplitude
+#define AG_STILL_INTERVALS 3u               ///< a unit's level at a standstill: median of this many intervals
+
+/// One unit's amplitude in one interval (noise RMS units).
+typedef struct {
+    uint32_t id;
+    double amp;
+} ag_unit_t;
+
+/// What one interval saw.
+typedef struct {
+    double depth_um;
+    uint8_t n;
+    ag_unit_t unit[AG_UNITS_MAX];
+} ag_snapshot_t;
+
+/// What the guard did to the SFSM's step.
+typedef enum {
+    AG_PASS = 0,     ///< step unchanged
+    AG_SLOWED,       ///< advance shortened to step_near_um (loud unit ahead)
+    AG_BLOCKED,      ///< advance shortened or cancelled by a ceiling
+    AG_RETRACT,      ///< retraction ordered: the unit climbed while standing still
+    AG_BAD_INPUT     ///< non-finite input: hold
+} ag_action_t;
+
+typedef struct {
+    double growth_stop;      ///< 1/µm: ln-amplitude growth per µm of advance that marks a unit steep
+    double baseline_min_um;  ///< shortest travel over which growth is measured
+    double amp_floor;        ///< below this robust amplitude (noise RMS units) growth is not judged
+    double amp_slow;         ///< from this amplitude advances are at most step_near_um
+    double amp_stop;         ///< a ceiling for every unit
+    double step_near_um;     ///< longest advance at or above amp_slow
+    double climb_frac;       ///< rise over a unit's ceiling that retracts (rule 3)
+    double climb_free_frac;  ///< rise over its first level at a standstill that retracts a unit without a ceiling
+    double retract_um;       ///< retraction step
+    double still_um;         ///< moves shorter than this count as standing still
+    uint8_t top_k;           ///< robust amplitude = k-th largest window amplitude (1..AG_TOP_K_MAX)
+} ag_config_t;
+
+/// A unit's ceiling.
+typedef struct {
+    uint32_t id;
+    double amp;        ///< its ceiling
+    double growth;     ///< its growth when it was set (>= growth_stop)
+    uint8_t unseen;    ///< intervals since the unit was last seen
+} ag_ceiling_t;
+
+typedef struct {
+    ag_config_t cfg;
+    ag_snapshot_t hist[AG_HISTORY];
+    uint8_t hist_n;
+    uint8_t hist_head;          ///< slot of the next entry
+    ag_ceiling_t ceil[AG_UNITS_MAX];
+    uint8_t n_ceil;
+    ag_snapshot_t steep;        ///< units steep on the latest advance (rule 1 needs two in a row)
+    ag_snapshot_t still_ref;    ///< per unit, its first level at the current standstill (rule 3)
+    double last_growth;         ///< largest unit growth of the latest interval (0 if none measured)
+    uint32_t cycles, ceilings_set, retractions, lapses, limited, bad_inputs;
+} ag_state_t;
+
+typedef struct {
+    const ag_unit_t *unit; ///< the interval's units (ids distinct; amp >= 0, 0: not seen)
+    size_t n_units;        ///< 0..AG_UNITS_MAX
+    double depth_um;       ///< depth at which the interval was recorded
+    double step_um;        ///< the SFSM's step (signed, + advances)
+} ag_input_t;
+
+typedef struct {
+    double step_um;        ///< the step to execute
+    ag_action_t action;
+    double growth;         ///< largest unit growth of this interval (0 if none measured)
+    uint32_t growth_unit;  ///< its unit id
+    uint8_t n_ceilings;    ///< ceilings in force after this interval
+} ag_output_t;
+
+/// Defaults (docs/sfsm.md, "Approach guard").
+void ag_config_default(ag_config_t *cfg);
+
+/// MD_OK if every field is in range (positive limits, amp_floor <= amp_slow
+/// < amp_stop, climb_frac <= climb_free_frac, 1 <= top_k <= AG_TOP_K_MAX),
+/// else MD_E_ARG.
+md_status_t ag_config_check(const ag_config_t *cfg);
+
+/// Starts with no history and no ceiling. MD_E_ARG on NULL or a bad config.
+md_status_t ag_init(ag_state_t *s, const ag_config_t *cfg);
+
+/// Robust amplitude of an interval: the k-th largest peak-to-peak amplitude
+/// over `n` int16 windows of `d_w` samples (row stride `stride`), times
+/// `gain` (µV per count) over `noise_rms_uv`. Fewer than k windows give 0
+/// (too little to judge). MD_E_ARG on NULL (with n > 0), d_w < 2,
+/// d_w > stride, k outside 1..AG_TOP_K_MAX, or a non-positive gain or noise.
+/// O(n · (d_w + k)).
+md_status_t ag_robust_amplitude_i16(const int16_t *wave, size_t n, size_t stride, size_t d_w, double gain,
+                                    double noise_rms_uv, uint8_t k, double *amp);
+
+/// One interval: updates the history and the ceilings, limits in->step_um.
+/// MD_E_ARG on NULL (nothing written) or invalid input — non-finite depth or
+/// step, a non-finite or negative amplitude, more than AG_UNITS_MAX units or
+/// a NULL unit array with n_units > 0 (out: step 0, AG_BAD_INPUT, counted).
+/// O(AG_HISTORY · AG_UNITS_MAX²).
+md_status_t ag_step(ag_state_t *s, const ag_input_t *in, ag_output_t *out);
+
+#endif

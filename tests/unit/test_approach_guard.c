@@ -1,0 +1,241 @@
+/// @file test_approach_guard.c
+/// Approach guard on scripted amplitude sequences: a neuron on the path
+/// (steep growth), a neuron passed at a safe lateral distance (shallow
+/// growth), noise, a unit that climbs while the electrode stands, artefact
+/// bursts that must not freeze the search, amp_stop, invalid input, and the
+/// robust amplitude itself.
+#include <math.h>
+#include <string.h>
+
+#include "control/approach_guard.h"
+#include "unity.h"
+
+static ag_state_t g;
+static ag_config_t cfg;
+
+void setUp(void)
+{
+    ag_config_default(&cfg);
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_init(&g, &cfg));
+}
+
+void tearDown(void) {}
+
+/* The amplitude law A(d) = a0 / (1 + d^2 / d0^2), in noise RMS units, plus
+ * the noise floor of a peak-to-peak measure. */
+static double law(double a0, double r_um, double x_um) { return 3.0 + a0 / (1.0 + (r_um * r_um + x_um * x_um) / 900.0); }
+
+/* One interval with the robust amplitude only. */
+static ag_output_t step1(double amp, double depth, double want)
+{
+    const ag_unit_t u = {AG_UNIT_RAW, amp};
+    const ag_input_t in = {&u, 1u, depth, want};
+    ag_output_t out;
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_step(&g, &in, &out));
+    return out;
+}
+
+/* Advances by what the SFSM asks (20 µm) as far as the guard lets it, towards
+ * a unit at depth 200 and lateral distance r; returns the closest distance. */
+static double approach(double a0, double r_um, int cycles)
+{
+    double z = 0.0;
+    double closest = HUGE_VAL;
+    for (int k = 0; k < cycles; ++k) {
+        const double x = 200.0 - z;
+        closest = fmin(closest, hypot(r_um, x));
+        const ag_output_t out = step1(law(a0, r_um, x), z, 20.0);
+        TEST_ASSERT_TRUE(out.step_um <= 20.0);
+        z += out.step_um;
+    }
+    return closest;
+}
+
+static void test_a_neuron_on_the_path_is_never_reached(void)
+{
+    /* On the path (r = 0) the tip would kill it within 12 µm. Contact
+     * amplitudes from 40 noise RMS up: a smaller neuron reaches amp_floor only
+     * inside the damage radius (docs/sfsm.md, "Approach guard", limits). */
+    for (double a0 = 40.0; a0 <= 120.0; a0 += 20.0) {
+        setUp();
+        const double closest = approach(a0, 0.0, 60);
+        TEST_ASSERT_TRUE_MESSAGE(closest > 12.0, "the tip came within the damage radius");
+        TEST_ASSERT_TRUE(g.n_ceil >= 1u);
+    }
+}
+
+static void test_a_neuron_passed_at_a_safe_distance_does_not_stop_the_advance(void)
+{
+    /* 45 µm off the track: growth never reaches growth_stop twice in a row. */
+    approach(60.0, 45.0, 30);
+    TEST_ASSERT_EQUAL_UINT8(0u, g.n_ceil);
+    TEST_ASSERT_EQUAL_UINT32(0u, g.ceilings_set);
+}
+
+static void test_advances_are_shortened_once_a_unit_is_loud(void)
+{
+    ag_output_t out = step1(cfg.amp_slow - 1.0, 0.0, 30.0);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 30.0, out.step_um);
+    TEST_ASSERT_EQUAL_INT(AG_PASS, out.action);
+    out = step1(cfg.amp_slow + 1.0, 30.0, 30.0);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, cfg.step_near_um, out.step_um);
+    TEST_ASSERT_EQUAL_INT(AG_SLOWED, out.action);
+    out = step1(cfg.amp_slow + 1.0, 40.0, -30.0); /* retractions are never shortened */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, -30.0, out.step_um);
+}
+
+static void test_noise_at_a_standstill_never_retracts(void)
+{
+    /* ±8 % noise around a loud unit, standing still for 200 intervals. */
+    uint32_t x = 12345u;
+    for (int k = 0; k < 200; ++k) {
+        x = x * 1103515245u + 12345u;
+        const double noise = ((double)(x >> 16 & 0x7FFFu) / 32767.0 - 0.5) * 0.16;
+        const ag_output_t out = step1(30.0 * (1.0 + noise), 100.0, 0.0);
+        TEST_ASSERT_EQUAL_INT(AG_PASS, out.action);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.step_um);
+    }
+    TEST_ASSERT_EQUAL_UINT32(0u, g.retractions);
+}
+
+static void test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way(void)
+{
+    /* A quieter unit (a track) climbs while a louder one stays: the robust
+     * amplitude alone would not show it. */
+    double z = 100.0;
+    int retractions = 0;
+    for (int k = 0; k < 30; ++k) {
+        const ag_unit_t u[2] = {{AG_UNIT_RAW, 40.0}, {7u, 16.0 * pow(1.05, k)}};
+        const ag_input_t in = {u, 2u, z, 0.0};
+        ag_output_t out;
+        TEST_ASSERT_EQUAL_INT(MD_OK, ag_step(&g, &in, &out));
+        if (out.action == AG_RETRACT) {
+            TEST_ASSERT_DOUBLE_WITHIN(1e-9, -cfg.retract_um, out.step_um);
+            retractions++;
+        }
+        z += out.step_um;
+    }
+    TEST_ASSERT_TRUE(retractions >= 1);
+    TEST_ASSERT_TRUE(z < 100.0);
+}
+
+static void test_a_unit_saturating_at_a_ceiling_holds_the_electrode_without_retracting(void)
+{
+    double z = 0.0;
+    for (int k = 0; k < 40 && g.n_ceil == 0u; ++k) {
+        z += step1(law(80.0, 0.0, 200.0 - z), z, 20.0).step_um;
+    }
+    TEST_ASSERT_EQUAL_UINT8(1u, g.n_ceil);
+    const double ceiling = g.ceil[0].amp;
+    for (int k = 0; k < 50; ++k) { /* the SFSM keeps asking; the unit stays where it is */
+        const ag_output_t out = step1(ceiling, z, 10.0);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.step_um);
+        TEST_ASSERT_EQUAL_INT(AG_BLOCKED, out.action);
+    }
+    TEST_ASSERT_EQUAL_UINT32(0u, g.retractions);
+}
+
+static void test_the_electrode_follows_a_unit_that_moves_away(void)
+{
+    double z = 0.0;
+    for (int k = 0; k < 40 && g.n_ceil == 0u; ++k) {
+        z += step1(law(80.0, 0.0, 200.0 - z), z, 20.0).step_um;
+    }
+    TEST_ASSERT_EQUAL_UINT8(1u, g.n_ceil);
+    const double ceiling = g.ceil[0].amp;
+    const ag_output_t out = step1(ceiling * 0.8, z, 10.0); /* the unit drifted away: some room again */
+    TEST_ASSERT_TRUE(out.step_um > 0.0);
+    TEST_ASSERT_TRUE(out.step_um <= 10.0);
+    TEST_ASSERT_TRUE(out.step_um <= log(1.0 / 0.8) / cfg.growth_stop + 1e-9);
+}
+
+static void test_an_artefact_burst_does_not_freeze_the_search(void)
+{
+    /* Two intervals of huge artefacts on a track unit set a ceiling; when the
+     * artefacts end the unit is gone, its ceiling lapses, the advance goes on. */
+    double z = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        const ag_unit_t u[2] = {{AG_UNIT_RAW, 9.0}, {3u, 20.0 * pow(3.0, k)}};
+        const ag_input_t in = {u, 2u, z, 20.0};
+        ag_output_t out;
+        TEST_ASSERT_EQUAL_INT(MD_OK, ag_step(&g, &in, &out));
+        z += out.step_um;
+    }
+    for (int k = 0; k < (int)AG_HISTORY + 2; ++k) {
+        z += step1(9.0, z, 20.0).step_um;
+    }
+    TEST_ASSERT_EQUAL_UINT8(0u, g.n_ceil);
+    const ag_output_t out = step1(9.0, z, 20.0);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 20.0, out.step_um);
+}
+
+static void test_amp_stop_is_a_ceiling_for_every_unit(void)
+{
+    ag_output_t out = step1(cfg.amp_stop, 0.0, 5.0);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.step_um);
+    TEST_ASSERT_EQUAL_INT(AG_BLOCKED, out.action);
+    out = step1(cfg.amp_stop * 0.9, 0.0, 30.0);
+    TEST_ASSERT_TRUE(out.step_um > 0.0 && out.step_um <= log(1.0 / 0.9) / cfg.growth_stop + 1e-9);
+}
+
+static void test_invalid_input_holds_and_is_counted(void)
+{
+    const ag_unit_t bad[2] = {{AG_UNIT_RAW, NAN}, {1u, -1.0}};
+    ag_output_t out;
+    for (size_t i = 0u; i < 2u; ++i) {
+        const ag_input_t in = {&bad[i], 1u, 0.0, 20.0};
+        TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(&g, &in, &out));
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.step_um);
+        TEST_ASSERT_EQUAL_INT(AG_BAD_INPUT, out.action);
+    }
+    const ag_unit_t ok = {AG_UNIT_RAW, 10.0};
+    const ag_input_t nan_depth = {&ok, 1u, NAN, 20.0};
+    const ag_input_t too_many = {&ok, AG_UNITS_MAX + 1u, 0.0, 20.0};
+    const ag_input_t null_units = {NULL, 1u, 0.0, 20.0};
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(&g, &nan_depth, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(&g, &too_many, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(&g, &null_units, &out));
+    TEST_ASSERT_EQUAL_UINT32(5u, g.bad_inputs);
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(NULL, &nan_depth, &out));
+    ag_config_t c = cfg;
+    c.amp_slow = c.amp_stop;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
+    c = cfg;
+    c.top_k = 0u;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_init(&g, &c));
+}
+
+static void test_robust_amplitude_is_the_kth_largest_window(void)
+{
+    static int16_t w[8][4];
+    memset(w, 0, sizeof w);
+    for (int j = 0; j < 8; ++j) {
+        w[j][1] = (int16_t)(-10 * (j + 1)); /* ptp 10 (j + 1) + 5 */
+        w[j][2] = 5;
+    }
+    double a = -1.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_robust_amplitude_i16(&w[0][0], 8u, 4u, 4u, 0.5, 2.5, 3u, &a));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, (60.0 + 5.0) * 0.5 / 2.5, a); /* 3rd largest: j = 5 */
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_robust_amplitude_i16(&w[0][0], 2u, 4u, 4u, 0.5, 2.5, 3u, &a));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, a); /* fewer windows than k: too little to judge */
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_robust_amplitude_i16(&w[0][0], 8u, 4u, 5u, 0.5, 2.5, 3u, &a));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_robust_amplitude_i16(&w[0][0], 8u, 4u, 4u, 0.5, 0.0, 3u, &a));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_robust_amplitude_i16(NULL, 8u, 4u, 4u, 0.5, 2.5, 3u, &a));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_a_neuron_on_the_path_is_never_reached);
+    RUN_TEST(test_a_neuron_passed_at_a_safe_distance_does_not_stop_the_advance);
+    RUN_TEST(test_advances_are_shortened_once_a_unit_is_loud);
+    RUN_TEST(test_noise_at_a_standstill_never_retracts);
+    RUN_TEST(test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way);
+    RUN_TEST(test_a_unit_saturating_at_a_ceiling_holds_the_electrode_without_retracting);
+    RUN_TEST(test_the_electrode_follows_a_unit_that_moves_away);
+    RUN_TEST(test_an_artefact_burst_does_not_freeze_the_search);
+    RUN_TEST(test_amp_stop_is_a_ceiling_for_every_unit);
+    RUN_TEST(test_invalid_input_holds_and_is_counted);
+    RUN_TEST(test_robust_amplitude_is_the_kth_largest_window);
+    return UNITY_END();
+}
