@@ -9,7 +9,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-static char *rp_slurp(const char *path, char *err, size_t errlen)
+static char *rp_slurp(const char *path, size_t *len_out, char *err, size_t errlen)
 {
     FILE *f = fopen(path, "rb");
     if (f == NULL) {
@@ -23,6 +23,7 @@ static char *rp_slurp(const char *path, char *err, size_t errlen)
             buf = malloc((size_t)len + 1u);
             if ((buf != NULL) && (fread(buf, 1u, (size_t)len, f) == (size_t)len)) {
                 buf[len] = '\0';
+                *len_out = (size_t)len;
             } else {
                 free(buf);
                 buf = NULL;
@@ -34,6 +35,116 @@ static char *rp_slurp(const char *path, char *err, size_t errlen)
         (void)snprintf(err, errlen, "%s: cannot read (or larger than 64 MB)", path);
     }
     return buf;
+}
+
+/* Copies at most `max` bytes of s (n bytes) into dst as printable ASCII, other bytes as \xNN. */
+static void rp_printable(const char *s, size_t n, size_t max, char *dst, size_t dstlen)
+{
+    size_t o = 0u;
+    dst[0] = '\0';
+    for (size_t i = 0u; (i < n) && (i < max) && (o + 5u < dstlen); ++i) {
+        const unsigned char c = (unsigned char)s[i];
+        const int w = ((c >= 0x20u) && (c < 0x7fu) && (c != '\\'))
+                          ? snprintf(&dst[o], dstlen - o, "%c", (char)c)
+                          : snprintf(&dst[o], dstlen - o, "\\x%02x", (unsigned)c);
+        o += (w > 0) ? (size_t)w : 0u;
+    }
+}
+
+static int rp_is_space(char c)
+{
+    return (c == ' ') || (c == '\t') || (c == '\n') || (c == '\r');
+}
+
+/* The key whose value starts at text[pos] ("key": <pos>), or "" if pos is not after a key. */
+static void rp_key_before(const char *text, size_t pos, char *key, size_t keylen)
+{
+    key[0] = '\0';
+    size_t i = pos;
+    while ((i > 0u) && rp_is_space(text[i - 1u])) {
+        --i;
+    }
+    if ((i == 0u) || (text[i - 1u] != ':')) {
+        return;
+    }
+    --i;
+    while ((i > 0u) && rp_is_space(text[i - 1u])) {
+        --i;
+    }
+    if ((i < 2u) || (text[i - 1u] != '"')) {
+        return;
+    }
+    const size_t end = i - 1u; /* the closing quote */
+    size_t start = end;
+    while ((start > 0u) && (text[start - 1u] != '"')) {
+        --start;
+    }
+    if (start > 0u) {
+        rp_printable(&text[start], end - start, 48u, key, keylen);
+    }
+}
+
+/* Parses the sidecar text (len bytes, NUL-terminated) into a JSON object, or
+ * NULL with "path: not a JSON object: ..." in err: the byte offset (0-based),
+ * line and column (1-based) of the first byte the parser could not take, the
+ * key whose value it was in, and what is there. Reads `text` only before it
+ * returns; the caller may free it right after. */
+static cJSON *rp_parse_object(const char *path, const char *text, size_t len, char *err, size_t errlen)
+{
+    if (len == 0u) {
+        (void)snprintf(err, errlen, "%s: empty file", path);
+        return NULL;
+    }
+    if (strlen(text) < len) {
+        (void)snprintf(err, errlen, "%s: not a JSON object: NUL byte at byte offset %zu", path, strlen(text));
+        return NULL;
+    }
+    const char *end = NULL;
+    cJSON *root = cJSON_ParseWithOpts(text, &end, 0);
+    size_t pos = ((end != NULL) && (end >= text) && (end <= text + len)) ? (size_t)(end - text) : len;
+    char what[96];
+    if (root != NULL) {
+        while ((pos < len) && rp_is_space(text[pos])) {
+            ++pos;
+        }
+        if (pos >= len) {
+            if (cJSON_IsObject(root)) {
+                return root;
+            }
+            (void)snprintf(err, errlen, "%s: not a JSON object: the top level is %s", path,
+                           cJSON_IsArray(root) ? "an array" : (cJSON_IsString(root) ? "a string" : "a scalar"));
+            cJSON_Delete(root);
+            return NULL;
+        }
+        cJSON_Delete(root);
+        (void)snprintf(what, sizeof what, "text after the JSON value");
+    } else {
+        const char *p = &text[(pos < len) ? pos : len];
+        const char *q = ((*p == '-') || (*p == '+')) ? p + 1 : p;
+        if (pos >= len) {
+            (void)snprintf(what, sizeof what, "unexpected end of file");
+        } else if ((strncmp(q, "NaN", 3u) == 0) || (strncmp(q, "nan", 3u) == 0)) {
+            (void)snprintf(what, sizeof what, "NaN is not a JSON number");
+        } else if ((strncmp(q, "Infinity", 8u) == 0) || (strncmp(q, "inf", 3u) == 0)) {
+            (void)snprintf(what, sizeof what, "Infinity is not a JSON number");
+        } else {
+            char c[8];
+            rp_printable(p, 1u, 1u, c, sizeof c);
+            (void)snprintf(what, sizeof what, "unexpected character '%s'", c);
+        }
+    }
+    size_t line = 1u;
+    size_t col = 1u;
+    for (size_t i = 0u; i < pos; ++i) {
+        line += (text[i] == '\n') ? 1u : 0u;
+        col = (text[i] == '\n') ? 1u : col + 1u;
+    }
+    char key[200];
+    rp_key_before(text, pos, key, sizeof key);
+    (void)snprintf(err, errlen,
+                   "%s: not a JSON object: invalid JSON at byte offset %zu (line %zu, column %zu)%s%s%s: %s", path,
+                   pos, line, col, (key[0] != '\0') ? ", in \"" : "", key, (key[0] != '\0') ? "\"" : "", what);
+    return NULL;
 }
 
 static int rp_number(const cJSON *obj, const char *name, int required, double *v, const char *path, char *err,
@@ -182,17 +293,14 @@ int rp_read_recording(const char *json_path, double interval_s, uint32_t channel
                       size_t errlen)
 {
     memset(rec, 0, sizeof *rec);
-    char *text = rp_slurp(json_path, err, errlen);
+    size_t len = 0u;
+    char *text = rp_slurp(json_path, &len, err, errlen);
     if (text == NULL) {
         return -1;
     }
-    cJSON *root = cJSON_Parse(text);
-    free(text);
-    if (!cJSON_IsObject(root)) {
-        const char *at = cJSON_GetErrorPtr();
-        (void)snprintf(err, errlen, "%s: not a JSON object (parse error near \"%.20s\")", json_path,
-                       (at != NULL) ? at : "");
-        cJSON_Delete(root);
+    cJSON *root = rp_parse_object(json_path, text, len, err, errlen);
+    free(text); /* the error message is complete: nothing points into the text any more */
+    if (root == NULL) {
         return -1;
     }
     rp_dirname(json_path, rec->dir, sizeof rec->dir);
