@@ -1,9 +1,10 @@
 #!/bin/sh
-# A recording whose sidecar (recording.json) is not valid JSON must end the
-# tool with exit status 1 and exactly one line on stderr,
-# "TOOL: PATH: reason", naming the file and the byte offset of the error;
-# never a crash or a sanitizer report (the exit status alone cannot tell:
-# AddressSanitizer also exits 1, so the test checks the one line).
+# A bad recording (a sidecar recording.json that is not JSON or has a bad
+# field, a binary that does not fit it) must end the tool with exit status 1
+# and exactly one line on stderr, "TOOL: PATH: reason", naming the file and
+# the byte offset or field; never a crash or a sanitizer report (the exit
+# status alone cannot tell: AddressSanitizer also exits 1, so the test checks
+# the one line). Every error class of the reader itself: test_recording.
 # usage: test_sidecar_cli.sh MHTC_REPLAY
 set -eu
 REPLAY=${1:?usage: test_sidecar_cli.sh MHTC_REPLAY}
@@ -43,4 +44,34 @@ check trailing recording.json 'at byte offset 67 (line 1, column 68): text after
     '{"sampling_frequency": 30000, "num_channels": 1, "dtype": "int16"} x'
 check empty recording.json 'empty file' ''
 check array recording.json 'not a JSON object: the top level is an array' '[30000, 1, "int16"]'
+
+# fields
+check rate_missing recording.json 'field "sampling_frequency": missing' '{"num_channels": 1, "dtype": "int16"}'
+check rate_negative recording.json 'field "sampling_frequency": must be > 0 Hz, got -30000' \
+    '{"sampling_frequency": -30000, "num_channels": 1, "dtype": "int16"}'
+check rate_zero recording.json 'field "sampling_frequency": must be > 0 Hz, got 0' \
+    '{"sampling_frequency": 0, "num_channels": 1, "dtype": "int16"}'
+check rate_string recording.json 'field "sampling_frequency": not a number (a string)' \
+    '{"sampling_frequency": "30 kHz", "num_channels": 1, "dtype": "int16"}'
+check channels recording.json 'field "num_channels": 1.5 is not an integer 1..1024' \
+    '{"sampling_frequency": 30000, "num_channels": 1.5, "dtype": "int16"}'
+check dtype recording.json 'field "dtype": "uint16" is not supported (int16 or float32, little-endian)' \
+    '{"sampling_frequency": 30000, "num_channels": 1, "dtype": "uint16"}'
+check gain recording.json 'field "gain_uV": must be > 0, got 0' \
+    '{"sampling_frequency": 30000, "num_channels": 1, "dtype": "int16", "gain_uV": 0}'
+check interval recording.json 'field "intervals[0].num_samples": missing' \
+    '{"sampling_frequency": 30000, "num_channels": 1, "dtype": "int16", "intervals": [{"start_sample": 0}]}'
+
+# the binary
+check odd_size recording.bin '4001 bytes is not a whole number of 4-byte frames (2 channel(s) of int16)' \
+    '{"sampling_frequency": 1000, "num_channels": 2, "dtype": "int16"}' 4001
+check odd_size_f32 recording.bin '4002 bytes is not a whole number of 4-byte frames (1 channel(s) of float32)' \
+    '{"sampling_frequency": 1000, "num_channels": 1, "dtype": "float32"}' 4002
+check empty_bin recording.bin 'empty (0 bytes)' '{"sampling_frequency": 1000, "num_channels": 1, "dtype": "int16"}' 0
+check no_bin other.bin 'cannot open: No such file or directory' \
+    '{"sampling_frequency": 1000, "num_channels": 1, "dtype": "int16", "file": "other.bin"}'
+check num_samples recording.json 'field "num_samples": 5000, but' \
+    '{"sampling_frequency": 1000, "num_channels": 1, "dtype": "int16", "num_samples": 5000}'
+check too_short recording.json 'no interval of 10 s fits in the 2000 samples per channel' \
+    '{"sampling_frequency": 1000, "num_channels": 1, "dtype": "int16"}'
 echo "test_sidecar_cli: OK"
