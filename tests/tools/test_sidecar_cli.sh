@@ -5,29 +5,46 @@
 # the byte offset or field; never a crash or a sanitizer report (the exit
 # status alone cannot tell: AddressSanitizer also exits 1, so the test checks
 # the one line). Every error class of the reader itself: test_recording.
-# usage: test_sidecar_cli.sh MHTC_REPLAY
+# Both tools read recordings with tools/recording; each case runs through
+# both (cluster-consistency needs the sidecar's interval list, so the cases
+# without one run through mhtc-replay alone).
+# usage: test_sidecar_cli.sh MHTC_REPLAY [CLUSTER_CONSISTENCY]
 set -eu
-REPLAY=${1:?usage: test_sidecar_cli.sh MHTC_REPLAY}
+REPLAY=${1:?usage: test_sidecar_cli.sh MHTC_REPLAY [CLUSTER_CONSISTENCY]}
+CC=${2:-}
 W=$(mktemp -d)
 trap 'rm -rf "$W"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
-# check NAME FILE REASON JSON [BIN_BYTES]: writes W/NAME/recording.json (JSON)
-# and a zero-filled W/NAME/recording.bin, runs the tool; the one stderr line
-# must be "mhtc-replay: W/NAME/FILE: ..." and contain REASON.
-check() {
-    name=$1 file=$2 reason=$3 json=$4 bytes=${5:-4000}
-    d="$W/$name"
-    mkdir -p "$d"
-    printf '%s' "$json" > "$d/recording.json"
-    head -c "$bytes" /dev/zero > "$d/recording.bin"
+# expect TOOL DIR FILE STATUS REASON [ARGS...]: runs TOOL on DIR; it must exit
+# with STATUS and write one stderr line "TOOL: DIR/FILE: ..." containing REASON.
+expect() {
+    tool=$1 d=$2 file=$3 status=$4 reason=$5
+    shift 5
     rc=0
-    "$REPLAY" --recording "$d/recording.json" --out "$d/out" --quiet 2> "$d/stderr" || rc=$?
-    [ "$rc" -eq 1 ] || { cat "$d/stderr" >&2; fail "$name: exit status $rc, expected 1"; }
-    [ "$(wc -l < "$d/stderr")" -eq 1 ] || { cat "$d/stderr" >&2; fail "$name: stderr is not one line"; }
-    grep -qF "mhtc-replay: $d/$file: " "$d/stderr" || { cat "$d/stderr" >&2; fail "$name: does not name $file"; }
-    grep -qF -- "$reason" "$d/stderr" || { cat "$d/stderr" >&2; fail "$name: lacks '$reason'"; }
-    echo "ok $name: $(cat "$d/stderr")"
+    case $tool in
+        mhtc-replay) "$REPLAY" --recording "$d/recording.json" --out "$d/out" --quiet "$@" 2> "$d/stderr" || rc=$? ;;
+        cluster-consistency) "$CC" "$d" "$@" > /dev/null 2> "$d/stderr" || rc=$? ;;
+    esac
+    [ "$rc" -eq "$status" ] || { cat "$d/stderr" >&2; fail "$tool $d: exit status $rc, expected $status"; }
+    [ "$(wc -l < "$d/stderr")" -eq 1 ] || { cat "$d/stderr" >&2; fail "$tool $d: stderr is not one line"; }
+    grep -qF "$tool: $d/$file: " "$d/stderr" || { cat "$d/stderr" >&2; fail "$tool $d: does not name $file"; }
+    grep -qF -- "$reason" "$d/stderr" || { cat "$d/stderr" >&2; fail "$tool $d: lacks '$reason'"; }
+    echo "ok $(cat "$d/stderr")"
+}
+
+# mkrec NAME JSON [BIN_BYTES]: W/NAME/recording.json and a zero-filled recording.bin
+mkrec() {
+    mkdir -p "$W/$1"
+    printf '%s' "$2" > "$W/$1/recording.json"
+    head -c "${3:-4000}" /dev/zero > "$W/$1/recording.bin"
+}
+
+# check NAME FILE REASON JSON [BIN_BYTES]: exit 1 and the one line from each tool
+check() {
+    mkrec "$1" "$4" "${5:-4000}"
+    expect mhtc-replay "$W/$1" "$2" 1 "$3"
+    if [ -n "$CC" ]; then expect cluster-consistency "$W/$1" "$2" 1 "$3"; fi
 }
 
 # not JSON: the offset is of the first byte the parser could not take
@@ -72,6 +89,18 @@ check no_bin other.bin 'cannot open: No such file or directory' \
     '{"sampling_frequency": 1000, "num_channels": 1, "dtype": "int16", "file": "other.bin"}'
 check num_samples recording.json 'field "num_samples": 5000, but' \
     '{"sampling_frequency": 1000, "num_channels": 1, "dtype": "int16", "num_samples": 5000}'
-check too_short recording.json 'no interval of 10 s fits in the 2000 samples per channel' \
-    '{"sampling_frequency": 1000, "num_channels": 1, "dtype": "int16"}'
+
+# no interval list: mhtc-replay cuts the signal (here too short), cluster-consistency needs the list
+mkrec no_list '{"sampling_frequency": 1000, "num_channels": 1, "dtype": "int16"}'
+expect mhtc-replay "$W/no_list" recording.json 1 'no interval of 10 s fits in the 2000 samples per channel'
+if [ -n "$CC" ]; then
+    expect cluster-consistency "$W/no_list" recording.json 1 'field "intervals": missing'
+fi
+# a channel the recording lacks: an input error for mhtc-replay, a usage error (2) for cluster-consistency
+mkrec channel '{"sampling_frequency": 1000, "num_channels": 2, "dtype": "int16", "intervals": [{"start_sample": 0, "num_samples": 500}]}'
+expect mhtc-replay "$W/channel" recording.json 1 'channel 2 requested, but the recording has 2 channel(s)' --channel 2
+if [ -n "$CC" ]; then
+    expect cluster-consistency "$W/channel" recording.json 2 'channel 2 requested, but the recording has 2 channel(s)' \
+        --channel 2
+fi
 echo "test_sidecar_cli: OK"
