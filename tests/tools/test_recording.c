@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "recording.h"
@@ -314,6 +315,9 @@ static void test_not_json(void)
     (void)snprintf(missing, sizeof missing, "%s/recording.json", g_dir);
     (void)remove(missing);
     check_error(MD_E_IO, open_rec(10.0, 0u), "recording.json", "cannot open: No such file", __LINE__);
+    TEST_ASSERT_EQUAL_INT(0, mkdir(missing, 0700));
+    check_error(MD_E_IO, open_rec(10.0, 0u), "recording.json", "not a regular file", __LINE__);
+    TEST_ASSERT_EQUAL_INT(0, rmdir(missing));
 }
 
 /* ---------------------------------------------------------------- bad fields */
@@ -374,7 +378,7 @@ static void test_bad_channels_dtype_gain(void)
                       "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"seed\": -1}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"scenario\": not a string (an array)",
                       "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"scenario\": []}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"dtype\": given twice",
+    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"dtype\": given 2 times",
                       "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"dtype\": \"float32\"}");
     write_json("{\"sampling_frequency\": 30000, \"num_channels\": 2, \"dtype\": \"int16\"}");
     check_error(MD_E_ARG, open_rec(0.01, 3u), "recording.json", "channel 3 requested, but the recording has 2 channel(s)",
@@ -409,6 +413,8 @@ static void test_bad_binary(void)
                       "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"file\": \"\"}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"file\": not a string (a number)",
                       "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"file\": 1}");
+    EXPECT_OPEN_ERROR(MD_E_IO, ".", "not a regular file",
+                      "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"file\": \".\"}");
     EXPECT_OPEN_ERROR(MD_E_IO, "nothing.bin", "cannot open",
                       "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"file\": \"nothing.bin\"}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "no interval of 10 s fits in the 2000 samples per channel of ", mono);
@@ -457,7 +463,7 @@ static void test_bad_intervals(void)
                       HEAD "\"intervals\": [{\"start_sample\": 0, \"num_samples\": 10, \"depth_um\": [1, \"2\"]}]}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"intervals[0].depth_um\": not a number (an object)",
                       HEAD "\"intervals\": [{\"start_sample\": 0, \"num_samples\": 10, \"depth_um\": {}}]}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"intervals[0].num_samples\": given twice",
+    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"intervals[0].num_samples\": given 2 times",
                       HEAD "\"intervals\": [{\"start_sample\": 0, \"num_samples\": 10, \"num_samples\": 20}]}");
     /* a tool that needs the list */
     write_json(HEAD "\"intervals\": []}");

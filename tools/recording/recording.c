@@ -49,6 +49,15 @@ const char *rec_dtype_name(rec_dtype_t dtype)
 /* The whole file, NUL-terminated (heap), its length in *len. */
 static char *rec_slurp(const rec_ctx_t *c, size_t *len, md_status_t *st)
 {
+    struct stat sb;
+    if (stat(c->path, &sb) != 0) {
+        *st = rec_fail(c, MD_E_IO, "cannot open: %s", strerror(errno));
+        return NULL;
+    }
+    if (!S_ISREG(sb.st_mode)) {
+        *st = rec_fail(c, MD_E_IO, "not a regular file");
+        return NULL;
+    }
     FILE *f = fopen(c->path, "rb");
     if (f == NULL) {
         *st = rec_fail(c, MD_E_IO, "cannot open: %s", strerror(errno));
@@ -379,16 +388,23 @@ static const char *rec_type_name(const cJSON *it)
     return cJSON_IsArray(it) ? "an array" : "an object";
 }
 
-/* A key given twice in one object: cJSON would silently take the first. */
-static md_status_t rec_unique_keys(const rec_ctx_t *c, const cJSON *obj, const char *where)
+static const char *const REC_TOP_KEYS[] = {"sampling_frequency", "num_channels", "dtype", "gain_uV", "offset_uV",
+                                           "byte_order", "layout", "num_samples", "file", "scenario", "seed",
+                                           "intervals"};
+static const char *const REC_INTERVAL_KEYS[] = {"start_sample", "num_samples", "duration_s", "depth_um"};
+
+/* A field this reader uses, given twice in one object: cJSON would silently take the first.
+ * (Other keys are not read; a linear pass per field keeps a huge object cheap.) */
+static md_status_t rec_unique_keys(const rec_ctx_t *c, const cJSON *obj, const char *where, const char *const *keys,
+                                   size_t n_keys)
 {
-    for (const cJSON *a = (obj != NULL) ? obj->child : NULL; a != NULL; a = a->next) {
-        for (const cJSON *b = a->next; b != NULL; b = b->next) {
-            if ((a->string != NULL) && (b->string != NULL) && (strcmp(a->string, b->string) == 0)) {
-                char key[200];
-                rec_printable(a->string, strlen(a->string), 48u, key, sizeof key);
-                return rec_fail(c, MD_E_FRAME, "field \"%s%s\": given twice", where, key);
-            }
+    for (size_t k = 0u; k < n_keys; ++k) {
+        unsigned seen = 0u;
+        for (const cJSON *a = obj->child; a != NULL; a = a->next) {
+            seen += ((a->string != NULL) && (strcmp(a->string, keys[k]) == 0)) ? 1u : 0u;
+        }
+        if (seen > 1u) {
+            return rec_fail(c, MD_E_FRAME, "field \"%s%s\": given %u times", where, keys[k], seen);
         }
     }
     return MD_OK;
@@ -628,7 +644,8 @@ static md_status_t rec_intervals(const rec_ctx_t *c, const cJSON *list, uint32_t
                             rec_type_name(it));
         }
         rec_interval_t *iv = &rec->iv[rec->n_intervals];
-        if ((rec_unique_keys(c, it, where) != MD_OK) ||
+        if ((rec_unique_keys(c, it, where, REC_INTERVAL_KEYS, sizeof REC_INTERVAL_KEYS / sizeof REC_INTERVAL_KEYS[0]) !=
+             MD_OK) ||
             (rec_integer(c, it, where, "start_sample", 1, 0.0, REC_INT_MAX, &iv->start_sample) != MD_OK) ||
             (rec_integer(c, it, where, "num_samples", 1, 1.0, REC_INT_MAX, &iv->num_samples) != MD_OK)) {
             return MD_E_FRAME;
@@ -675,7 +692,7 @@ static void rec_cut_intervals(rec_recording_t *rec, double interval_s)
 
 static md_status_t rec_check(const rec_ctx_t *c, const cJSON *root, const rec_options_t *opt, rec_recording_t *rec)
 {
-    md_status_t st = rec_unique_keys(c, root, "");
+    md_status_t st = rec_unique_keys(c, root, "", REC_TOP_KEYS, sizeof REC_TOP_KEYS / sizeof REC_TOP_KEYS[0]);
     if (st == MD_OK) {
         st = rec_header(c, root, rec);
     }
