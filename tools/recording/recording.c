@@ -439,7 +439,7 @@ static int rec_integer(const rec_ctx_t *c, const cJSON *obj, const char *where, 
         return rc;
     }
     if ((floor(x) < x) || !(x >= lo) || !(x <= hi)) {
-        return (int)rec_fail(c, MD_E_FRAME, "field \"%s%s\": %.17g is not an integer %.17g..%.17g", where, key, x, lo,
+        return (int)rec_fail(c, MD_E_FRAME, "field \"%s%s\": %.15g is not an integer %.17g..%.17g", where, key, x, lo,
                              hi);
     }
     *v = (uint64_t)x;
