@@ -41,7 +41,7 @@ expect_err() { # $1 = pattern, rest = args
     grep -q "$pat" "$W/msg" || { cat "$W/msg" >&2; fail "message lacks '$pat'"; }
 }
 expect_err 'cannot open' --recording "$W/none.json"
-printf '{"sampling_frequency": 30000, "num_channels": 1, "dtype": "float32"}' > "$W/plain/recording.json"
+printf '{"sampling_frequency": 30000, "num_channels": 1, "dtype": "float64"}' > "$W/plain/recording.json"
 expect_err 'field "dtype"' --recording "$W/plain/recording.json"
 printf '{"num_channels": 1, "dtype": "int16"}' > "$W/plain/recording.json"
 expect_err 'field "sampling_frequency": missing' --recording "$W/plain/recording.json"

@@ -33,6 +33,7 @@
 #include "common/linalg.h"
 #include "features/pca.h"
 #include "metrics/quality.h"
+#include "recording.h"
 #include "signal/spike_detect.h"
 #include "signal/spike_extract.h"
 
@@ -429,7 +430,7 @@ static int parse_args(int argc, char **argv, cc_options_t *o)
     return 0;
 }
 
-static void print_row(const cc_recording_t *rec, const cc_options_t *o, uint32_t k, const cc_interval_data_t *d,
+static void print_row(const rec_recording_t *rec, const cc_options_t *o, uint32_t k, const cc_interval_data_t *d,
                       const cc_choice_t *map, const cc_choice_t *ml, size_t n_targets)
 {
     char ids[256];
@@ -439,13 +440,15 @@ static void print_row(const cc_recording_t *rec, const cc_options_t *o, uint32_t
         n_false += (d->truth_of[i] < 0) ? 1u : 0u;
     }
     printf("%s,%llu,%u,%u,%.2f,%zu,%zu,%zu,%u,%s,%zu,%zu,%.4f,%.4f,%zu,%.4f,%.4f,%u\n", rec->scenario,
-           (unsigned long long)rec->seed, o->channel, k, rec->iv[k].depth_um[o->channel], d->spk.n, n_false, noise.n,
+           (unsigned long long)rec->seed, o->channel, k, rec->iv[k].depth_um, d->spk.n, n_false, noise.n,
            n_true, ids, n_targets, map->g, map->p, map->acc, ml->g, ml->p, ml->acc, ev.n_overflow);
 }
 
-static int run(const cc_options_t *o, const cc_recording_t *rec, const cc_truth_t *truth, int16_t *x, size_t cap)
+static int run(const cc_options_t *o, const rec_recording_t *rec, const cc_truth_t *truth, int16_t *x, size_t cap)
 {
     static cc_map_state_t ms;
+    char err[REC_ERR_MAX];
+    rec_conversion_t conv = {0u, 0u};
     memset(&ms, 0, sizeof ms);
     long psi_map = 0;
     long psi_ml = 0;
@@ -454,12 +457,19 @@ static int run(const cc_options_t *o, const cc_recording_t *rec, const cc_truth_
     for (uint32_t k = 0u; k < rec->n_intervals; ++k) {
         cc_interval_data_t *cur = &ivd[k % 2u];
         const cc_interval_data_t *prev = &ivd[(k + 1u) % 2u];
-        if (cc_read_interval(o->dir, rec, k, o->channel, x, cap) != MD_OK) {
-            (void)fprintf(stderr, "cluster-consistency: cannot read interval %u\n", k);
+        const rec_conversion_t before = conv;
+        if (rec_read_interval(rec, k, o->channel, x, cap, &conv, err, sizeof err) != MD_OK) {
+            (void)fprintf(stderr, "cluster-consistency: %s\n", err);
             return 1;
         }
+        if ((conv.clipped > before.clipped) || (conv.non_finite > before.non_finite)) {
+            (void)fprintf(stderr, "cluster-consistency: %s: interval %u, channel %u: %llu float32 sample(s) clipped to "
+                                  "int16 counts of %g uV, %llu NaN/inf set to 0\n", rec->bin_path, k, o->channel,
+                          (unsigned long long)(conv.clipped - before.clipped), rec->count_uv,
+                          (unsigned long long)(conv.non_finite - before.non_finite));
+        }
         cur->duration_s = (double)rec->iv[k].num_samples / rec->fs_hz;
-        (void)run_chain(x, rec->iv[k].num_samples, rec->fs_hz, rec->gain_uv, cur);
+        (void)run_chain(x, (size_t)rec->iv[k].num_samples, rec->fs_hz, rec->count_uv, cur);
         label_truth(truth, rec->iv[k].start_sample, rec->fs_hz, cur);
         if (o->drift) {
             if ((k > 0u) && cur->valid && prev->valid) {
@@ -498,15 +508,15 @@ int main(int argc, char **argv)
                               "                           [--drift] [--clusters] [--no-header]\n");
         return 2;
     }
-    static cc_recording_t rec;
-    char err[512];
-    if (cc_read_sidecar(o.dir, &rec, err, sizeof err) != MD_OK) {
+    static rec_recording_t rec;
+    char err[REC_ERR_MAX];
+    char path[REC_PATH_MAX + 32u];
+    (void)snprintf(path, sizeof path, "%s/recording.json", o.dir);
+    const rec_options_t ro = {0.0, o.channel}; /* the export's interval list is required */
+    const md_status_t st = rec_read_sidecar(path, &ro, &rec, err, sizeof err);
+    if (st != MD_OK) {
         (void)fprintf(stderr, "cluster-consistency: %s\n", err);
-        return 1;
-    }
-    if (o.channel >= rec.n_channels) {
-        (void)fprintf(stderr, "cluster-consistency: channel %u of %u\n", o.channel, rec.n_channels);
-        return 2;
+        return (st == MD_E_ARG) ? 2 : 1; /* MD_E_ARG: a --channel the recording lacks */
     }
     cc_truth_t truth;
     if (cc_read_truth(o.dir, o.channel, &truth) != MD_OK) {
@@ -515,7 +525,7 @@ int main(int argc, char **argv)
     }
     size_t cap = 0u;
     for (uint32_t k = 0u; k < rec.n_intervals; ++k) {
-        cap = (rec.iv[k].num_samples > cap) ? rec.iv[k].num_samples : cap;
+        cap = (rec.iv[k].num_samples > cap) ? (size_t)rec.iv[k].num_samples : cap;
     }
     int16_t *x = malloc(cap * sizeof *x);
     int16_t *det_buf = malloc(cap * sizeof *det_buf); /* the detector's interval buffer */

@@ -20,7 +20,7 @@
 
 #include "features/pca.h"
 #include "metrics/quality.h"
-#include "rp_io.h"
+#include "recording.h"
 #include "signal/spike_detect.h"
 #include "signal/spike_extract.h"
 #include "tracking/mhtc.h"
@@ -28,6 +28,7 @@
 #define RP_D 2u               ///< feature dimension (thesis: 2-D PCA)
 #define RP_Q_UV_DEFAULT 10.0  ///< process-noise std per waveform sample and interval (µV)
 #define RP_MAX_IDS 4096u      ///< distinct track IDs summarised
+#define RP_PATH_MAX REC_PATH_MAX ///< longest output path
 
 typedef struct {
     const char *recording;
@@ -46,7 +47,9 @@ typedef struct {
 } rp_options_t;
 
 /* Large state lives in static storage, as on the controller. */
-static rp_recording_t g_rec;
+static rec_recording_t g_rec;
+static size_t g_cap;              ///< samples of the longest interval (room in x)
+static rec_conversion_t g_conv;   ///< float32 samples clipped / non-finite so far
 static sd_detector_t g_det;
 static sd_events_t g_ev;
 static sx_spikes_t g_spk;
@@ -74,8 +77,8 @@ typedef struct {
     uint8_t *labels;                              ///< n_hyp × n (heap)
 } rp_lineage_t;
 
-static rp_lineage_t g_lin[RP_MAX_INTERVALS];
-static double g_step_ms[RP_MAX_INTERVALS];
+static rp_lineage_t g_lin[REC_MAX_INTERVALS];
+static double g_step_ms[REC_MAX_INTERVALS];
 
 static int rp_usage(const char *msg)
 {
@@ -289,7 +292,7 @@ static void rp_json_hyps(FILE *f, const mhtc_result_t *r)
                   r->log_p4, r->log_assoc, r->models_fitted);
 }
 
-static void rp_write_interval(FILE *jl, FILE *lab, uint32_t k, const rp_interval_t *iv, double ms)
+static void rp_write_interval(FILE *jl, FILE *lab, uint32_t k, const rec_interval_t *iv, double ms)
 {
     double noise_rms = 0.0;
     (void)qm_noise_rms(&g_noise.wave[0][0], g_noise.n, MD_WAVE_LEN_MAX, g_noise.d_w, &noise_rms);
@@ -344,7 +347,7 @@ static int rp_keep_lineage(rp_lineage_t *l, uint32_t k, uint64_t start)
 static void rp_write_final_labels(FILE *lab, uint32_t done)
 {
     size_t h = 0u;
-    static size_t chosen[RP_MAX_INTERVALS];
+    static size_t chosen[REC_MAX_INTERVALS];
     for (uint32_t i = done; i-- > 0u;) {
         chosen[i] = (h < g_lin[i].n_hyp) ? h : 0u;
         h = g_lin[i].parent[chosen[i]];
@@ -381,6 +384,10 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
     qsort(g_step_ms, done, sizeof g_step_ms[0], rp_cmp_double);
     (void)fprintf(f, "{\n  \"recording\": \"%s\",\n  \"tracker\": \"%s\",\n  \"channel\": %u,\n", o->recording,
                   mhtc_tracker_name(o->tracker), o->channel);
+    (void)fprintf(f, "  \"dtype\": \"%s\",\n  \"gain_uV\": %g,\n  \"count_uV\": %g,\n  \"samples_clipped\": %llu,\n"
+                     "  \"samples_non_finite\": %llu,\n",
+                  rec_dtype_name(g_rec.dtype), g_rec.gain_uv, g_rec.count_uv, (unsigned long long)g_conv.clipped,
+                  (unsigned long long)g_conv.non_finite);
     (void)fprintf(f, "  \"intervals\": %u,\n  \"spikes\": %zu,\n  \"q_uv\": %g,\n  \"init_uv\": %g,\n  \"L\": %zu,\n",
                   done, spikes, o->q_uv, o->init_uv, o->L);
     (void)fprintf(f, "  \"step_ms_median\": %.3f,\n  \"step_ms_max\": %.3f,\n", (done > 0u) ? g_step_ms[done / 2u] : 0.0,
@@ -439,8 +446,9 @@ static int rp_mkdirs(const char *path)
 
 static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
 {
-    char err[RP_PATH_MAX + 256u];
-    if (rp_read_recording(o->recording, o->interval_s, o->channel, &g_rec, err, sizeof err) != 0) {
+    char err[REC_ERR_MAX];
+    const rec_options_t ro = {o->interval_s, o->channel};
+    if (rec_read_sidecar(o->recording, &ro, &g_rec, err, sizeof err) != MD_OK) {
         (void)fprintf(stderr, "mhtc-replay: %s\n", err);
         return 1;
     }
@@ -450,10 +458,10 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
     }
     sd_config_t sdc;
     sd_config_default(&sdc, SD_METHOD_WAVELET, (uint32_t)g_rec.fs_hz);
-    *x = malloc((size_t)cap * sizeof **x);
-    *det_buf = malloc((size_t)cap * sizeof **det_buf);
-    if ((*x == NULL) || (*det_buf == NULL) || (cap > SD_MAX_INTERVAL_SAMPLES) ||
-        (sd_init(&g_det, &sdc, *det_buf, (size_t)cap) != MD_OK)) {
+    g_cap = (cap <= SD_MAX_INTERVAL_SAMPLES) ? (size_t)cap : 0u;
+    *x = (g_cap > 0u) ? malloc(g_cap * sizeof **x) : NULL;
+    *det_buf = (g_cap > 0u) ? malloc(g_cap * sizeof **det_buf) : NULL;
+    if ((*x == NULL) || (*det_buf == NULL) || (sd_init(&g_det, &sdc, *det_buf, g_cap) != MD_OK)) {
         (void)fprintf(stderr, "mhtc-replay: %s: interval of %llu samples exceeds the detector (max %u)\n",
                       o->recording, (unsigned long long)cap, (unsigned)SD_MAX_INTERVAL_SAMPLES);
         return 1;
@@ -480,14 +488,21 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
 
 static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32_t *done, size_t *spikes)
 {
-    char err[RP_PATH_MAX + 256u];
+    char err[REC_ERR_MAX];
     for (uint32_t k = 0u; k < g_rec.n_intervals; ++k) {
-        const rp_interval_t *iv = &g_rec.iv[k];
-        if (rp_read_interval(&g_rec, k, o->channel, x, err, sizeof err) != 0) {
+        const rec_interval_t *iv = &g_rec.iv[k];
+        const rec_conversion_t before = g_conv;
+        if (rec_read_interval(&g_rec, k, o->channel, x, g_cap, &g_conv, err, sizeof err) != MD_OK) {
             (void)fprintf(stderr, "mhtc-replay: %s\n", err);
             return 1;
         }
-        if (rp_chain(x, (size_t)iv->num_samples, g_rec.fs_hz, g_rec.gain_uv) != 0) {
+        if ((g_conv.clipped > before.clipped) || (g_conv.non_finite > before.non_finite)) {
+            (void)fprintf(stderr, "mhtc-replay: %s: interval %u, channel %u: %llu float32 sample(s) clipped to int16 "
+                                  "counts of %g uV, %llu NaN/inf set to 0\n", g_rec.bin_path, k, o->channel,
+                          (unsigned long long)(g_conv.clipped - before.clipped), g_rec.count_uv,
+                          (unsigned long long)(g_conv.non_finite - before.non_finite));
+        }
+        if (rp_chain(x, (size_t)iv->num_samples, g_rec.fs_hz, g_rec.count_uv) != 0) {
             (void)fprintf(stderr, "mhtc-replay: interval %u: signal chain failed (no noise snippets or basis); "
                                   "skipped\n", k);
             continue;
