@@ -8,11 +8,28 @@
 #include "md_bus_fault.h"
 #include "unity.h"
 
-void setUp(void) {}
-void tearDown(void) {}
-
 static md_bus_t g_tx_inner, g_rx_inner;   /* must not move while open */
 static md_bus_fault_t g_fault;
+
+void setUp(void)
+{
+    memset(&g_tx_inner, 0, sizeof g_tx_inner);
+    memset(&g_rx_inner, 0, sizeof g_rx_inner);
+    memset(&g_fault, 0, sizeof g_fault);
+}
+
+/* Closes whatever the test left open, also when a failed assertion ended it
+ * before its own close: an endpoint left open would hold a slot of the
+ * process-wide in-process tables for every later test. */
+void tearDown(void)
+{
+    md_bus_t *const eps[] = {&g_fault.bus, &g_tx_inner, &g_rx_inner};   /* the wrapper first */
+    for (size_t i = 0; i < sizeof eps / sizeof eps[0]; ++i) {
+        if (eps[i]->ops != NULL) {   /* NULL: not opened (or wrapped) in this test */
+            md_bus_close(eps[i]);
+        }
+    }
+}
 
 static md_frame_t frame_n(uint32_t n)
 {

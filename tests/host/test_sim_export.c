@@ -9,13 +9,50 @@
 #include "export/sim_export.h"
 #include "unity.h"
 
-void setUp(void) {}
-void tearDown(void) {}
-
 static scenario_t sc;
 static char err[1024];
 
 static const char *FILES[4] = {"recording.bin", "recording.json", "ground_truth.csv", "ground_truth.jsonl"};
+
+/* The export folders and file contents of the running test. tearDown removes
+ * and frees them, also when a failed assertion ended the test first. */
+#define MAX_DIRS 3
+#define MAX_BUFS 3
+static char g_dir[MAX_DIRS][64];
+static int g_n_dirs;
+static char *g_buf[MAX_BUFS];
+
+static void cleanup(const char *dir)
+{
+    char path[512];
+    for (int i = 0; i < 4; ++i) {
+        (void)snprintf(path, sizeof path, "%s/%s", dir, FILES[i]);
+        (void)remove(path);
+    }
+    (void)remove(dir);
+}
+
+static void free_bufs(void)
+{
+    for (int i = 0; i < MAX_BUFS; ++i) {
+        free(g_buf[i]);
+        g_buf[i] = NULL;
+    }
+}
+
+void setUp(void)
+{
+    g_n_dirs = 0;
+}
+
+void tearDown(void)
+{
+    free_bufs();
+    for (int i = 0; i < g_n_dirs; ++i) {
+        cleanup(g_dir[i]);
+    }
+    g_n_dirs = 0;
+}
 
 static char *slurp(const char *dir, const char *name, size_t *len)
 {
@@ -51,37 +88,35 @@ static void make_scenario(void)
     TEST_ASSERT_EQUAL_INT(0, scenario_parse(&sc, y, sizeof y - 1u, "export.yaml", err, sizeof err));
 }
 
-static void export_to(char *dir, uint64_t seed)
+/* Exports the scenario with `seed` into a new temporary folder (removed by
+ * tearDown) and returns the folder. */
+static const char *export_new(uint64_t seed)
 {
+    TEST_ASSERT_LESS_THAN_INT(MAX_DIRS, g_n_dirs);
+    char *dir = g_dir[g_n_dirs];
     strcpy(dir, "/tmp/test_sim_export_XXXXXX");
     TEST_ASSERT_NOT_NULL(mkdtemp(dir));
+    g_n_dirs++;
     const md_status_t st = sim_export_recording(&sc, seed, dir, err, sizeof err);
     if (st != MD_OK) {
         TEST_MESSAGE(err);
     }
     TEST_ASSERT_EQUAL_INT(MD_OK, st);
-}
-
-static void cleanup(const char *dir)
-{
-    char path[512];
-    for (int i = 0; i < 4; ++i) {
-        (void)snprintf(path, sizeof path, "%s/%s", dir, FILES[i]);
-        (void)remove(path);
-    }
-    (void)remove(dir);
+    return dir;
 }
 
 static void test_same_seed_gives_byte_identical_files(void)
 {
     make_scenario();
-    char d1[64], d2[64], d3[64];
-    export_to(d1, 11u);
-    export_to(d2, 11u);
-    export_to(d3, 12u);
+    const char *d1 = export_new(11u);
+    const char *d2 = export_new(11u);
+    const char *d3 = export_new(12u);
     for (int i = 0; i < 4; ++i) {
         size_t n1 = 0u, n2 = 0u, n3 = 0u;
-        char *a = slurp(d1, FILES[i], &n1), *b = slurp(d2, FILES[i], &n2), *c = slurp(d3, FILES[i], &n3);
+        free_bufs();
+        char *a = g_buf[0] = slurp(d1, FILES[i], &n1);
+        char *b = g_buf[1] = slurp(d2, FILES[i], &n2);
+        char *c = g_buf[2] = slurp(d3, FILES[i], &n3);
         TEST_ASSERT_NOT_NULL(a);
         TEST_ASSERT_NOT_NULL(b);
         TEST_ASSERT_NOT_NULL(c);
@@ -92,24 +127,17 @@ static void test_same_seed_gives_byte_identical_files(void)
             TEST_ASSERT_EQUAL_size_t(n1, n3);
             TEST_ASSERT_TRUE(memcmp(a, c, n1) != 0);
         }
-        free(a);
-        free(b);
-        free(c);
     }
-    cleanup(d1);
-    cleanup(d2);
-    cleanup(d3);
 }
 
 static void test_files_are_consistent(void)
 {
     make_scenario();
-    char d[64];
-    export_to(d, 11u);
+    const char *d = export_new(11u);
     size_t nbin = 0u, njson = 0u, ncsv = 0u;
-    char *bin = slurp(d, "recording.bin", &nbin);
-    char *json = slurp(d, "recording.json", &njson);
-    char *csv = slurp(d, "ground_truth.csv", &ncsv);
+    const char *bin = g_buf[0] = slurp(d, "recording.bin", &nbin);
+    const char *json = g_buf[1] = slurp(d, "recording.json", &njson);
+    const char *csv = g_buf[2] = slurp(d, "ground_truth.csv", &ncsv);
     TEST_ASSERT_NOT_NULL(bin);
     TEST_ASSERT_NOT_NULL(json);
     TEST_ASSERT_NOT_NULL(csv);
@@ -141,10 +169,6 @@ static void test_files_are_consistent(void)
     TEST_ASSERT_EQUAL_INT('\0', *p);
     TEST_ASSERT_TRUE(ch0 > 20 && ch0 < 80);   /* 30 Hz over 1.5 s */
     TEST_ASSERT_TRUE(rows > ch0);            /* the random neurons of channel 1 fire too */
-    free(bin);
-    free(json);
-    free(csv);
-    cleanup(d);
 }
 
 static void test_bad_directory_is_reported(void)

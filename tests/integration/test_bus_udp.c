@@ -7,6 +7,7 @@
 #include <errno.h>
 #include <net/if.h>
 #include <netinet/in.h>
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/socket.h>
@@ -23,8 +24,30 @@
 #define BUS_TEST_PATTERN 29u
 #include "bus_test_frames.h"
 
-void setUp(void) {}
-void tearDown(void) {}
+/* What a test opens besides bus_ep: tearDown releases it if a failed
+ * assertion ended the test first (a child left running would go on answering
+ * frames in the later tests). */
+static int raw_fd = -1;
+static pid_t child_pid = -1;
+
+void setUp(void)
+{
+    bus_test_reset();
+}
+
+void tearDown(void)
+{
+    bus_test_close_all();
+    if (raw_fd >= 0) {
+        (void)close(raw_fd);
+        raw_fd = -1;
+    }
+    if (child_pid > 0) {
+        (void)kill(child_pid, SIGKILL);
+        (void)waitpid(child_pid, NULL, 0);
+        child_pid = -1;
+    }
+}
 
 static void open_udp(md_bus_t *bus, const char *spec)
 {
@@ -33,10 +56,11 @@ static void open_udp(md_bus_t *bus, const char *spec)
 }
 
 /// A plain UDP socket that can send anything to the bus's group, with the
-/// same loopback-only settings as the bus.
+/// same loopback-only settings as the bus. tearDown closes it.
 static int raw_sender(void)
 {
-    const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+    raw_fd = socket(AF_INET, SOCK_DGRAM, 0);
+    const int fd = raw_fd;
     TEST_ASSERT_TRUE(fd >= 0);
     const int ttl = 0;
     TEST_ASSERT_EQUAL_INT(0, setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl));
@@ -58,14 +82,14 @@ static void raw_send(int fd, const uint8_t *buf, size_t len)
 
 static void test_open_reports_the_group_and_keeps_traffic_on_loopback(void)
 {
-    md_bus_t a;
+    md_bus_t *const a = &bus_ep[0];
     char why[160] = "";
-    TEST_ASSERT_EQUAL_INT(0, md_bus_open(&a, "udp", why, sizeof why));
+    TEST_ASSERT_EQUAL_INT(0, md_bus_open(a, "udp", why, sizeof why));
     TEST_MESSAGE(why);
     TEST_ASSERT_TRUE(strstr(why, "loopback") != NULL);
-    TEST_ASSERT_EQUAL_INT(MD_BUS_UDP, a.kind);
-    TEST_ASSERT_EQUAL_STRING("udp:239.71.0.1:57731", a.name);
-    const int fd = md_bus_fd(&a);
+    TEST_ASSERT_EQUAL_INT(MD_BUS_UDP, a->kind);
+    TEST_ASSERT_EQUAL_STRING("udp:239.71.0.1:57731", a->name);
+    const int fd = md_bus_fd(a);
     TEST_ASSERT_TRUE(fd >= 0);
     int v = -1;
     socklen_t len = sizeof v;
@@ -78,68 +102,68 @@ static void test_open_reports_the_group_and_keeps_traffic_on_loopback(void)
     len = sizeof ifaddr;
     TEST_ASSERT_EQUAL_INT(0, getsockopt(fd, IPPROTO_IP, IP_MULTICAST_IF, &ifaddr, &len));
     TEST_ASSERT_EQUAL_HEX32(htonl(INADDR_LOOPBACK), ifaddr.s_addr);
-    md_bus_close(&a);
-    TEST_ASSERT_EQUAL_INT(-1, md_bus_fd(&a));
+    md_bus_close(a);
+    TEST_ASSERT_EQUAL_INT(-1, md_bus_fd(a));
 }
 
 static void test_three_endpoints_exchange_classic_and_fd_frames_without_echo(void)
 {
-    md_bus_t a;
-    open_udp(&a, "udp");
-    md_bus_t b;
-    open_udp(&b, "udp");
-    md_bus_t c;
-    open_udp(&c, "udp:57731");
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    md_bus_t *const b = &bus_ep[1];
+    open_udp(b, "udp");
+    md_bus_t *const c = &bus_ep[2];
+    open_udp(c, "udp:57731");
     const md_frame_t classic = make_frame(0x123, 4, 0, 0xDE);
     const md_frame_t fd = make_frame(0x1ABCDE01u, 64,
                                      (uint8_t)(MD_FRAME_FLAG_FD | MD_FRAME_FLAG_EXT | MD_FRAME_FLAG_BRS), 0x5A);
     const md_frame_t empty = make_frame(0x7FF, 0, 0, 0);
-    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &classic));
-    expect_frame(&b, &classic);
-    expect_frame(&c, &classic);
-    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&c, &fd));
-    expect_frame(&a, &fd);
-    expect_frame(&b, &fd);
-    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&b, &empty));
-    expect_frame(&a, &empty);
-    expect_frame(&c, &empty);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &classic));
+    expect_frame(b, &classic);
+    expect_frame(c, &classic);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(c, &fd));
+    expect_frame(a, &fd);
+    expect_frame(b, &fd);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(b, &empty));
+    expect_frame(a, &empty);
+    expect_frame(c, &empty);
     // Each sender's own datagrams were looped back to it and dropped.
-    expect_nothing(&a);
-    expect_nothing(&b);
-    expect_nothing(&c);
-    TEST_ASSERT_EQUAL_UINT64(1, a.stats.tx_frames);
-    TEST_ASSERT_EQUAL_UINT64(2, a.stats.rx_frames);
-    TEST_ASSERT_EQUAL_UINT64(0, a.stats.rx_malformed + b.stats.rx_malformed + c.stats.rx_malformed);
-    md_bus_close(&a);
-    md_bus_close(&b);
-    md_bus_close(&c);
+    expect_nothing(a);
+    expect_nothing(b);
+    expect_nothing(c);
+    TEST_ASSERT_EQUAL_UINT64(1, a->stats.tx_frames);
+    TEST_ASSERT_EQUAL_UINT64(2, a->stats.rx_frames);
+    TEST_ASSERT_EQUAL_UINT64(0, a->stats.rx_malformed + b->stats.rx_malformed + c->stats.rx_malformed);
+    md_bus_close(a);
+    md_bus_close(b);
+    md_bus_close(c);
 }
 
 static void test_many_frames_arrive_complete_and_in_order(void)
 {
-    md_bus_t a;
-    open_udp(&a, "udp");
-    md_bus_t b;
-    open_udp(&b, "udp");
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    md_bus_t *const b = &bus_ep[1];
+    open_udp(b, "udp");
     const uint32_t n = 300;  // well inside the socket buffer
     for (uint32_t i = 0; i < n; ++i) {
         const md_frame_t f = make_frame(i, (uint8_t)(i % 9u), 0, (uint8_t)i);
-        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
     }
     for (uint32_t i = 0; i < n; ++i) {
         const md_frame_t f = make_frame(i, (uint8_t)(i % 9u), 0, (uint8_t)i);
-        expect_frame(&b, &f);
+        expect_frame(b, &f);
     }
-    expect_nothing(&b);
-    TEST_ASSERT_EQUAL_UINT64(0, b.stats.rx_overflow);
-    md_bus_close(&a);
-    md_bus_close(&b);
+    expect_nothing(b);
+    TEST_ASSERT_EQUAL_UINT64(0, b->stats.rx_overflow);
+    md_bus_close(a);
+    md_bus_close(b);
 }
 
 static void test_malformed_datagrams_are_counted_and_ignored(void)
 {
-    md_bus_t b;
-    open_udp(&b, "udp");
+    md_bus_t *const b = &bus_ep[0];
+    open_udp(b, "udp");
     const int raw = raw_sender();
     const md_frame_t good = make_frame(0x321, 8, 0, 0x11);
     uint8_t dg[MD_BUS_WIRE_MAX + 8u];
@@ -174,43 +198,42 @@ static void test_malformed_datagrams_are_counted_and_ignored(void)
     raw_send(raw, bad, size);
     raw_send(raw, dg, size);  // finally a good one
 
-    expect_frame(&b, &good);
-    TEST_ASSERT_EQUAL_UINT64(7, b.stats.rx_malformed);
-    TEST_ASSERT_EQUAL_UINT64(1, b.stats.rx_frames);
-    expect_nothing(&b);
-    (void)close(raw);
-    md_bus_close(&b);
+    expect_frame(b, &good);
+    TEST_ASSERT_EQUAL_UINT64(7, b->stats.rx_malformed);
+    TEST_ASSERT_EQUAL_UINT64(1, b->stats.rx_frames);
+    expect_nothing(b);
+    md_bus_close(b);
 }
 
 static void test_ports_are_separate_buses(void)
 {
-    md_bus_t a;
-    open_udp(&a, "udp");
-    md_bus_t other;
-    open_udp(&other, "udp:57732");
-    TEST_ASSERT_EQUAL_STRING("udp:239.71.0.1:57732", other.name);
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    md_bus_t *const other = &bus_ep[1];
+    open_udp(other, "udp:57732");
+    TEST_ASSERT_EQUAL_STRING("udp:239.71.0.1:57732", other->name);
     const md_frame_t f = make_frame(0x55, 1, 0, 1);
-    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
-    expect_nothing(&other);
-    md_bus_close(&a);
-    md_bus_close(&other);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
+    expect_nothing(other);
+    md_bus_close(a);
+    md_bus_close(other);
 }
 
 static void test_invalid_frame_and_arguments_are_refused(void)
 {
-    md_bus_t a;
-    open_udp(&a, "udp");
-    md_bus_t b;
-    open_udp(&b, "udp");
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    md_bus_t *const b = &bus_ep[1];
+    open_udp(b, "udp");
     const md_frame_t bad = make_frame(0x100, 9, 0, 0);
-    TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_send(&a, &bad));
-    TEST_ASSERT_EQUAL_UINT64(1, a.stats.tx_errors);
-    expect_nothing(&b);
+    TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_send(a, &bad));
+    TEST_ASSERT_EQUAL_UINT64(1, a->stats.tx_errors);
+    expect_nothing(b);
     md_frame_t r;
-    TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_receive(&b, &r, -5));
-    TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_receive(&b, NULL, 0));
-    md_bus_close(&a);
-    md_bus_close(&b);
+    TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_receive(b, &r, -5));
+    TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_receive(b, NULL, 0));
+    md_bus_close(a);
+    md_bus_close(b);
 }
 
 static int64_t now_us(void)
@@ -222,62 +245,62 @@ static int64_t now_us(void)
 
 static void test_receive_waits_for_its_timeout_and_no_longer(void)
 {
-    md_bus_t a;
-    open_udp(&a, "udp");
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
     md_frame_t r;
     const int64_t t0 = now_us();
-    TEST_ASSERT_EQUAL_INT(0, md_bus_receive(&a, &r, 100000));
+    TEST_ASSERT_EQUAL_INT(0, md_bus_receive(a, &r, 100000));
     const int64_t dt = now_us() - t0;
     TEST_ASSERT_GREATER_OR_EQUAL_INT(100000, (int)dt);
     TEST_ASSERT_LESS_THAN_INT(400000, (int)dt);
     const int64_t t1 = now_us();
-    TEST_ASSERT_EQUAL_INT(0, md_bus_receive(&a, &r, 0));
+    TEST_ASSERT_EQUAL_INT(0, md_bus_receive(a, &r, 0));
     TEST_ASSERT_LESS_THAN_INT(50000, (int)(now_us() - t1));
-    md_bus_close(&a);
+    md_bus_close(a);
 }
 
 static void test_kernel_drops_are_counted_as_overflow(void)
 {
-    md_bus_t a;
-    open_udp(&a, "udp");
-    md_bus_t b;
-    open_udp(&b, "udp");
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    md_bus_t *const b = &bus_ep[1];
+    open_udp(b, "udp");
     // b does not read while a floods: its socket buffer must overflow, even
     // the 16 MiB one root gets (each datagram costs ~1 kB of buffer).
     const uint32_t n = 100000;
     for (uint32_t i = 0; i < n; ++i) {
         const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
-        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
     }
     md_frame_t r;
-    for (uint32_t i = 0; i < n && md_bus_receive(&b, &r, ABSENT_US) == 1; ++i) {
+    for (uint32_t i = 0; i < n && md_bus_receive(b, &r, ABSENT_US) == 1; ++i) {
     }
     char msg[96];
-    (void)snprintf(msg, sizeof msg, "received %llu, overflow %llu", (unsigned long long)b.stats.rx_frames,
-                   (unsigned long long)b.stats.rx_overflow);
+    (void)snprintf(msg, sizeof msg, "received %llu, overflow %llu", (unsigned long long)b->stats.rx_frames,
+                   (unsigned long long)b->stats.rx_overflow);
     TEST_MESSAGE(msg);
-    TEST_ASSERT_GREATER_THAN_UINT(0, (unsigned)b.stats.rx_overflow);
-    TEST_ASSERT_EQUAL_UINT64(a.stats.tx_frames, b.stats.rx_frames + b.stats.rx_overflow);  // nothing uncounted
-    md_bus_close(&a);
-    md_bus_close(&b);
+    TEST_ASSERT_GREATER_THAN_UINT(0, (unsigned)b->stats.rx_overflow);
+    TEST_ASSERT_EQUAL_UINT64(a->stats.tx_frames, b->stats.rx_frames + b->stats.rx_overflow);  // nothing uncounted
+    md_bus_close(a);
+    md_bus_close(b);
 }
 
 static void test_round_trip_time_is_reported(void)
 {
-    md_bus_t a;
-    open_udp(&a, "udp");
-    md_bus_t b;
-    open_udp(&b, "udp");
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    md_bus_t *const b = &bus_ep[1];
+    open_udp(b, "udp");
     const uint32_t n = 2000;
     const md_frame_t ping = make_frame(0x10, 64, MD_FRAME_FLAG_FD, 1);
     const md_frame_t pong = make_frame(0x11, 8, 0, 2);
     const int64_t t0 = now_us();
     for (uint32_t i = 0; i < n; ++i) {
         md_frame_t r;
-        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &ping));
-        TEST_ASSERT_EQUAL_INT(1, md_bus_receive(&b, &r, ARRIVE_US));
-        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&b, &pong));
-        TEST_ASSERT_EQUAL_INT(1, md_bus_receive(&a, &r, ARRIVE_US));
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &ping));
+        TEST_ASSERT_EQUAL_INT(1, md_bus_receive(b, &r, ARRIVE_US));
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(b, &pong));
+        TEST_ASSERT_EQUAL_INT(1, md_bus_receive(a, &r, ARRIVE_US));
         TEST_ASSERT_EQUAL_UINT32(0x11, r.id);
     }
     const int64_t dt = now_us() - t0;
@@ -285,8 +308,8 @@ static void test_round_trip_time_is_reported(void)
     (void)snprintf(msg, sizeof msg, "UDP bus: %u round trips (64-byte FD ping, 8-byte pong) in %lld us: %.1f us each",
                    (unsigned)n, (long long)dt, (double)dt / (double)n);
     TEST_MESSAGE(msg);
-    md_bus_close(&a);
-    md_bus_close(&b);
+    md_bus_close(a);
+    md_bus_close(b);
 }
 
 /// Child: opens its own endpoint, announces itself, answers each frame with
@@ -320,30 +343,32 @@ static int child_echo(void)
 
 static void test_two_processes_talk_over_the_bus(void)
 {
-    md_bus_t a;
-    open_udp(&a, "udp");
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
     const pid_t pid = fork();
     TEST_ASSERT_TRUE(pid >= 0);
     if (pid == 0) {
         _exit(child_echo());
     }
+    child_pid = pid;
     const md_frame_t hello = make_frame(0x700, 0, 0, 0);
-    expect_frame(&a, &hello);
+    expect_frame(a, &hello);
     for (uint32_t i = 0; i < 10u; ++i) {
         const uint8_t flags = (uint8_t)((i % 2u) == 0u ? 0u : MD_FRAME_FLAG_FD);
         const md_frame_t f = make_frame(0x100u + 2u * i, (uint8_t)((i % 2u) == 0u ? 8u : 48u), flags, (uint8_t)i);
-        TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &f));
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
         md_frame_t e = f;
         e.id += 1u;
-        expect_frame(&a, &e);
+        expect_frame(a, &e);
     }
     const md_frame_t stop = make_frame(0x7FF, 0, 0, 0);
-    TEST_ASSERT_EQUAL_INT(0, md_bus_send(&a, &stop));
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &stop));
     int status = -1;
     TEST_ASSERT_EQUAL_INT((int)pid, (int)waitpid(pid, &status, 0));
+    child_pid = -1;
     TEST_ASSERT_TRUE(WIFEXITED(status));
     TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
-    md_bus_close(&a);
+    md_bus_close(a);
 }
 
 int main(void)

@@ -1,6 +1,7 @@
-/* Cortex-M character sink of the Unity stand-in: line-buffered semihosting.
- * One SYS_WRITE0 per line instead of one trap per character keeps test output
- * cheap under QEMU; md_m7_exit flushes the rest (also after a fault). */
+/* Cortex-M character sink of Unity (UNITY_OUTPUT_CHAR / UNITY_OUTPUT_FLUSH in
+ * unity_config.h beside this file): line-buffered semihosting. One SYS_WRITE0 per
+ * line instead of one trap per character keeps test output cheap under QEMU;
+ * md_m7_exit flushes the rest (also after a fault). */
 #include <stddef.h>
 
 #include "md_m7_semihost.h"
@@ -12,18 +13,20 @@
 static char line_buf[LINE_MAX_CHARS + 1u];
 static size_t line_len;
 
-static void flush_line(void)
+void md_target_flush(void)
 {
-    line_buf[line_len] = '\0';
-    md_sh_write0(line_buf);
-    line_len = 0u;
+    if (line_len > 0u) {
+        line_buf[line_len] = '\0';
+        md_sh_write0(line_buf);
+        line_len = 0u;
+    }
 }
 
-void unity_standin_putchar(int c)
+void md_target_putchar(int c)
 {
-    md_m7_exit_hook = flush_line;
+    md_m7_exit_hook = md_target_flush;
     line_buf[line_len++] = (char)c;
     if (c == '\n' || line_len >= LINE_MAX_CHARS) {
-        flush_line();
+        md_target_flush();
     }
 }
