@@ -3,6 +3,7 @@
 
     .venv/bin/python tools/external_eval/external_eval.py run --build-dir build/release \\
         [--work out/external-eval] [--static 8] [--drifting 4] [--jobs 2] [--md docs/external-eval.md]
+    .venv/bin/python tools/external_eval/external_eval.py report [--work DIR] --md PATH  # from results.json
     .venv/bin/python tools/external_eval/external_eval.py measure --build-dir DIR [--work DIR]  # CI bounds
     .venv/bin/python tools/external_eval/external_eval.py check   --build-dir DIR [--work DIR]  # CI check
 
@@ -368,7 +369,9 @@ def report_md(data):
     a("- Score: `spikeinterface.comparison.compare_sorter_to_ground_truth` (delta_time 0.4 ms, Hungarian "
       "matching), ground truth = the visible units only, tested units = track IDs (spikes with track −1 are "
       "unlabelled); per-unit **accuracy** = tp / (tp + fn + fp) of the matched track, 0 when none matched. "
-      "A unit whose spikes switch to a second track ID keeps only the matched track's spikes. "
+      "A track is matched only if its agreement score with the unit is ≥ 0.5 (SpikeInterface's default "
+      "`match_score`), so a unit split about evenly over two track IDs (an ID switch half-way), or merged "
+      "with another unit or with background spikes of similar count, scores 0. "
       "Means: per recording over its visible units, then over recordings (`mean`); `unit mean` pools all "
       "visible units.")
     a("- Loss split (same 0.4 ms): `detected` = share of a unit's spikes with a row in the tracker's labels, "
@@ -405,6 +408,30 @@ def report_md(data):
             if k:
                 a(f"| {t} | {kind} | {fmt(k['detected'])} | {fmt(k['labelled'])} | {fmt(k['unit_mean_accuracy'])} "
                   f"| {k['split_units']} of {k['units']} |")
+    a("")
+    a("## Units where MHTC is behind\n")
+    a("Visible units whose MHTC accuracy is at least 0.2 below the best of the other trackers (the online "
+      "MHTC labels excluded), with MHTC's loss split.\n")
+    behind = []
+    for r in data["static"] + data["drifting"]:
+        if "mhtc" not in r["trackers"]:
+            continue
+        near = {u["unit_id"]: u for u in r["units"]}
+        for uid, m in r["trackers"]["mhtc"]["units"].items():
+            others = {t: r["trackers"][t]["units"][uid]["accuracy"] for t in tr if t not in ("mhtc", "mhtc-online")}
+            if not others:
+                continue
+            best = max(others, key=others.get)
+            if m["accuracy"] <= others[best] - 0.2:
+                behind.append(f"| {r['kind']} {r['seed']} | {uid} | {near[uid]['amplitude_x_noise']:.1f} | "
+                              f"{fmt(near[uid].get('nearest_visible_x_noise'), 1)} | {m['accuracy']:.2f} | "
+                              f"{best} {others[best]:.2f} | {m['detected']:.2f} / {m['labelled']:.2f} / {m['ids']} |")
+    if behind:
+        a("| recording | unit | × noise | nearest | MHTC | best other | MHTC det / lab / IDs |")
+        a("|---|---|---:|---:|---:|---|---|")
+        L.extend(behind)
+    else:
+        a("None.")
     a("")
     a("## Per recording\n")
     a("Mean accuracy over the recording's visible units; tracks issued in brackets.\n")
@@ -497,6 +524,7 @@ def cmd_run(args):
     trackers = [t for t in TRACKERS if not (args.no_peer and t in ("peer", "oracle-thr"))]
     check_args(args, trackers)
     binary = replay_bin(args)
+    rev = git_rev()          # the tree the run starts from
     t0 = time.perf_counter()
     static, sk_s = collect("static", args.static, args.static_seed, args.duration, args, binary, trackers)
     drifting, sk_d = collect("drifting", args.drifting, args.drifting_seed, args.duration, args, binary, trackers)
@@ -511,7 +539,7 @@ def cmd_run(args):
     data = {"command": cmd, "run_s": run_s, "generate_s": sum(r["generate_s"] for r in static + drifting),
             "jobs": args.jobs, "machine": f"{os.cpu_count()} cores, {platform.machine()}",
             "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="minutes"),
-            "git": git_rev(), "versions": versions(), "duration_s": args.duration,
+            "git": rev, "versions": versions(), "duration_s": args.duration,
             "static_seed": args.static_seed, "drifting_seed": args.drifting_seed,
             "skipped": {"static": sk_s, "drifting": sk_d}, "trackers": trackers,
             "static": static, "drifting": drifting, "summary": summ,
@@ -529,6 +557,17 @@ def cmd_run(args):
         with open(args.md, "w") as f:
             f.write(report_md(data))
         log(f"wrote {args.md}")
+    return 0
+
+
+def cmd_report(args):
+    """Rewrite the report from WORK/results.json of an earlier run (no generation, no tracker runs)."""
+    data = read_json(os.path.join(args.work, "results.json"))
+    if not args.md:
+        raise EvalError("report: --md PATH is required")
+    with open(args.md, "w") as f:
+        f.write(report_md(data))
+    log(f"wrote {args.md}")
     return 0
 
 
@@ -582,7 +621,7 @@ def cmd_check(args):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("mode", choices=["run", "measure", "check"])
+    ap.add_argument("mode", choices=["run", "report", "measure", "check"])
     ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
     ap.add_argument("--replay", default=None, help="the mhtc-replay executable (default BUILD/bin/mhtc-replay)")
     ap.add_argument("--work", default=None, help="recordings and outputs (default out/external-eval[-ci])")
@@ -600,7 +639,7 @@ def main(argv=None):
     ap.add_argument("--md", default=None, help="write the report here (run)")
     args = ap.parse_args(argv)
     if args.work is None:
-        args.work = os.path.join(ROOT, "out", "external-eval" + ("" if args.mode == "run" else "-ci"))
+        args.work = os.path.join(ROOT, "out", "external-eval" + ("" if args.mode in ("run", "report") else "-ci"))
     for name in ("static_seed", "drifting_seed"):
         if getattr(args, name) < 1000:
             ap.error(f"--{name.replace('_', '-')} must be >= 1000 (lower generator seeds are reserved for "
@@ -608,7 +647,7 @@ def main(argv=None):
     if args.static < 0 or args.drifting < 0 or not args.duration >= 20.0:
         ap.error("--static/--drifting must be >= 0 and --duration >= 20 s")
     try:
-        return {"run": cmd_run, "measure": cmd_measure, "check": cmd_check}[args.mode](args)
+        return {"run": cmd_run, "report": cmd_report, "measure": cmd_measure, "check": cmd_check}[args.mode](args)
     except (EvalError, recordings.RecordingError, scoring.LabelsError) as e:
         print(f"external-eval: {e}", file=sys.stderr)
         return 2
