@@ -32,7 +32,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 CHECK = os.path.join(HERE, "check_invariants.py")
 FINDINGS = os.path.join(HERE, "campaign_findings.md")   # hand-written analysis, appended to the doc
-INVARIANTS = ["window", "step_cmd", "step_meas", "step_true", "rec_motion", "unasked", "hb_lost", "estop", "restart"]
+INVARIANTS = ["window", "step_cmd", "step_meas", "step_true", "rec_motion", "unasked", "hb_lost", "estop", "restart",
+              "neuron_damaged"]
 
 # fault counters printed by microdrive-session at the end of an in-process run
 RE_BUS = re.compile(r"bus fault \d+: frames seen (\d+), loss (\d+), corrupt (\d+), dup (\d+), "

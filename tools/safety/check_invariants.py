@@ -29,7 +29,9 @@ decoded with cantools and the project DBC. Invariants (docs/safety.md):
 With --truth, the true tip depth of every electrode in truth.jsonl is also
 checked against the window (`window`), and the true tip may move by at most
 step_max + tol between consecutive recordings of an electrode (`step_true`:
-what the electrode really did, whatever the sensor said). Exit status: 0 all hold, 1 a violation, 2 the
+what the electrode really did, whatever the sensor said), and no neuron may
+die (`neuron_damaged`: a truth `death` record, the tip came closer than the
+simulator's damage radius). Exit status: 0 all hold, 1 a violation, 2 the
 log cannot be read. A JSON summary goes to stdout (and --json OUT).
 """
 import argparse
@@ -51,7 +53,8 @@ NMT_START, NMT_CLEAR_ESTOP = 1, 131
 EMCY_HB_LOST = 0x8130
 STATE_BOOT, STATE_OPERATIONAL, STATE_PREOP = 0, 5, 127
 CALIB_MID, CALIB_HALF = 0xF0, 0xF1
-INVARIANTS = ("window", "step_cmd", "step_meas", "step_true", "rec_motion", "unasked", "hb_lost", "estop", "restart")
+INVARIANTS = ("window", "step_cmd", "step_meas", "step_true", "rec_motion", "unasked", "hb_lost", "estop", "restart",
+              "neuron_damaged")
 
 
 def parse_line(line):
@@ -229,8 +232,9 @@ class Checker:
 
 
 def check_truth(path, a, violations):
-    """True tip depths of truth.jsonl against the window (records with a tip depth), and
-    the true motion between consecutive tip records of an electrode against step_max."""
+    """True tip depths of truth.jsonl against the window (records with a tip depth), the
+    true motion between consecutive tip records of an electrode against step_max, and
+    every neuron death."""
     n = 0
     last = {}
     with open(path) as f:
@@ -238,6 +242,11 @@ def check_truth(path, a, violations):
             try:
                 r = json.loads(line)
             except ValueError:
+                continue
+            if r.get("type") == "death":
+                violations.append({"invariant": "neuron_damaged", "t": r.get("t_s", 0.0),
+                                   "what": f"electrode {r.get('electrode')}: neuron {r.get('neuron')} died, tip "
+                                           f"{r.get('distance_um')} um from it"})
                 continue
             for key in ("tip_um", "tip_depth_um", "depth_um"):
                 if key in r and "electrode" in r:
