@@ -51,6 +51,18 @@ static double approach(double a0, double r_um, int cycles)
     return closest;
 }
 
+/* Advances towards an 80-noise-RMS neuron on the path until it gets a
+ * ceiling; returns the depth reached. */
+static double approach_until_ceiling(void)
+{
+    double z = 0.0;
+    for (int k = 0; k < 40 && g.n_ceil == 0u; ++k) {
+        z += step1(law(80.0, 0.0, 200.0 - z), z, 20.0).step_um;
+    }
+    TEST_ASSERT_EQUAL_UINT8(1u, g.n_ceil);
+    return z;
+}
+
 static void test_a_neuron_on_the_path_is_never_reached(void)
 {
     /* On the path (r = 0) the tip would kill it within 12 µm. Contact
@@ -121,11 +133,7 @@ static void test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way(vo
 
 static void test_a_unit_saturating_at_a_ceiling_holds_the_electrode_without_retracting(void)
 {
-    double z = 0.0;
-    for (int k = 0; k < 40 && g.n_ceil == 0u; ++k) {
-        z += step1(law(80.0, 0.0, 200.0 - z), z, 20.0).step_um;
-    }
-    TEST_ASSERT_EQUAL_UINT8(1u, g.n_ceil);
+    const double z = approach_until_ceiling();
     const double ceiling = g.ceil[0].amp;
     for (int k = 0; k < 50; ++k) { /* the SFSM keeps asking; the unit stays where it is */
         const ag_output_t out = step1(ceiling, z, 10.0);
@@ -137,11 +145,7 @@ static void test_a_unit_saturating_at_a_ceiling_holds_the_electrode_without_retr
 
 static void test_the_electrode_follows_a_unit_that_moves_away(void)
 {
-    double z = 0.0;
-    for (int k = 0; k < 40 && g.n_ceil == 0u; ++k) {
-        z += step1(law(80.0, 0.0, 200.0 - z), z, 20.0).step_um;
-    }
-    TEST_ASSERT_EQUAL_UINT8(1u, g.n_ceil);
+    const double z = approach_until_ceiling();
     const double ceiling = g.ceil[0].amp;
     const ag_output_t out = step1(ceiling * 0.8, z, 10.0); /* the unit drifted away: some room again */
     TEST_ASSERT_TRUE(out.step_um > 0.0);
