@@ -6,7 +6,8 @@
 The crafted session (test_lcm_fixture.py) goes through md-lcm-bridge; the
 plot script must write tracks_pc.png, waveforms.png, status.png,
 hypotheses.png and truth.png, each a real PNG with ink on it (not a blank
-canvas), once with the build's lcm-gen -p types and once generating them
+canvas) whose titles and legends fit inside it (plot_session.check_layout,
+with a session label as long as a real one), once with the build's lcm-gen -p types and once generating them
 itself with lcm-gen; a log without telemetry must exit 1.
 """
 import argparse
@@ -66,7 +67,8 @@ def main():
     fails = []
     for label, extra in (("build types", ["--types", a.types]), ("lcm-gen on the fly", [])):
         out = os.path.join(a.work, "plots-" + label.split()[0])
-        p = subprocess.run([sys.executable, PLOT, log, "--out", out] + extra, capture_output=True, text=True)
+        p = subprocess.run([sys.executable, PLOT, log, "--out", out, "--label", "single_neuron seed 1"] + extra,
+                           capture_output=True, text=True)
         print(f"plot_session ({label}): exit {p.returncode}")
         if p.returncode != 0:
             fails.append(f"plot_session ({label}) exit {p.returncode}: {p.stderr[-800:]}")

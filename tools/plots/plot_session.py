@@ -14,6 +14,7 @@ Prints the files written. Exit 1 if the log holds no telemetry at all.
 import argparse
 import os
 import sys
+import textwrap
 
 import matplotlib
 
@@ -106,9 +107,29 @@ def new_figure(rows, cols, w=5.0, h=3.4):
     return fig, ax
 
 
+def check_layout(fig, name):
+    """Every title and legend lies inside the figure; raises otherwise, so a cut-off title is an error, not a
+    picture a user has to squint at."""
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    box = fig.bbox
+    texts = [(fig._suptitle, "figure title")] if fig._suptitle is not None else []
+    for ax in fig.axes:
+        texts.append((ax.title, f"panel title {ax.get_title()!r}"))
+        if ax.get_legend() is not None:
+            texts.append((ax.get_legend(), f"legend of {ax.get_title()!r}"))
+    for artist, what in texts:
+        bb = artist.get_window_extent(r)
+        if bb.width > 0 and (bb.x0 < box.x0 - 1 or bb.x1 > box.x1 + 1 or bb.y0 < box.y0 - 1 or bb.y1 > box.y1 + 1):
+            raise RuntimeError(f"{name}: {what} does not fit in the figure")
+
+
 def save(fig, out, name, title):
-    fig.suptitle(title)
+    # wrap the title to the figure's width (12 pt characters are ~6.6 pt wide)
+    width_chars = max(24, int(fig.get_figwidth() * 72 / 6.6))
+    fig.suptitle(textwrap.fill(title, width_chars))
     fig.tight_layout(rect=(0, 0.06, 1, 1))   # room for the caption
+    check_layout(fig, name)
     path = os.path.join(out, name)
     fig.savefig(path, dpi=90)
     plt.close(fig)
