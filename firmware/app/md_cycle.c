@@ -389,15 +389,13 @@ static double decide(md_electrode_t *el, const md_node_t *node, const md_process
     return out.step_um;
 }
 
-_Static_assert(AG_UNITS_MAX >= MHTC_TARGETS_MAX + 1u, "the guard sees every track and the robust amplitude");
-
 /* The guard's units: the robust amplitude of all detections (no tracker) and
  * the SNR of every track the leading hypothesis detected this interval. */
 static size_t guard_units(const md_workspace_t *ws, const md_process_out_t *po, ag_unit_t *unit)
 {
     size_t n = 0u;
     unit[n++] = (ag_unit_t){AG_UNIT_RAW, po->amp};
-    for (size_t j = 0u; j < ws->res.n_tracks && j < MHTC_TARGETS_MAX; ++j) {
+    for (size_t j = 0u; j < ws->res.n_tracks && j < MHTC_TARGETS_MAX && n < AG_UNITS_MAX; ++j) {
         if (ws->res.track[j].cluster > 0u && ws->track_snr[j] > 0.0) {
             unit[n++] = (ag_unit_t){ws->res.track[j].id, ws->track_snr[j]};
         }

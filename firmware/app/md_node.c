@@ -594,43 +594,16 @@ double md_node_param_read(const md_node_t *node, md_param_id_t id, uint64_t now_
     case MD_P_CYCLES_SKIPPED: return (double)c->cycles_skipped;
     case MD_P_RECORDINGS_FAILED: return (double)c->rec_failed;
     case MD_P_MOVES_FAILED: return (double)c->moves_failed;
-    case MD_P_EMCY_INHIBIT_MS:
-    case MD_P_HEARTBEAT_TIMEOUT_MS:
-    case MD_P_HEARTBEAT_PERIOD_MS:
-    case MD_P_MONITOR_ACT:
-    case MD_P_MONITOR_HALL:
-    case MD_P_MONITOR_FE:
-    case MD_P_AUTO_START:
-    case MD_P_INTERVAL_S:
-    case MD_P_STEP_MAX_UM:
-    case MD_P_STEP_SEARCH_UM:
-    case MD_P_STEP_SAMPLE_UM:
-    case MD_P_STEP_RESAMPLE_UM:
-    case MD_P_DEPTH_MIN_UM:
-    case MD_P_DEPTH_MAX_UM:
-    case MD_P_SETTLE_MS:
-    case MD_P_MIN_RATE_HZ:
-    case MD_P_SERVO_TOL_UM:
-    case MD_P_SERVO_MAX_ITER:
-    case MD_P_SERVO_AVG_N:
-    case MD_P_SERVO_STEP_NM:
-    case MD_P_SERVO_RATE_HZ:
-    case MD_P_SFSM_GAMMA1:
-    case MD_P_SFSM_GAMMA2:
-    case MD_P_SFSM_GAMMA3:
-    case MD_P_SFSM_WAIT_R:
-    case MD_P_SFSM_LOST_CYCLES:
-    case MD_P_SFSM_SNR_DROP:
-    case MD_P_SC_TOL_UM:
-    case MD_P_SFSM_SNR_MIN:
-    case MD_P_MHTC_Q_UV:
-    case MD_P_TRACKER:
-    case MD_P_GUARD_ENABLE:
-    case MD_P_GUARD_GROWTH_STOP:
-    case MD_P_GUARD_AMP_SLOW:
-    case MD_P_GUARD_AMP_STOP:
-    case MD_P_GUARD_STEP_NEAR_UM:
-    case MD_P_GUARD_RETRACT_UM:
+    /* tunables: the value set */
+    case MD_P_EMCY_INHIBIT_MS: case MD_P_HEARTBEAT_TIMEOUT_MS: case MD_P_HEARTBEAT_PERIOD_MS: case MD_P_MONITOR_ACT:
+    case MD_P_MONITOR_HALL: case MD_P_MONITOR_FE: case MD_P_AUTO_START: case MD_P_INTERVAL_S: case MD_P_STEP_MAX_UM:
+    case MD_P_STEP_SEARCH_UM: case MD_P_STEP_SAMPLE_UM: case MD_P_STEP_RESAMPLE_UM: case MD_P_DEPTH_MIN_UM:
+    case MD_P_DEPTH_MAX_UM: case MD_P_SETTLE_MS: case MD_P_MIN_RATE_HZ: case MD_P_SERVO_TOL_UM:
+    case MD_P_SERVO_MAX_ITER: case MD_P_SERVO_AVG_N: case MD_P_SERVO_STEP_NM: case MD_P_SERVO_RATE_HZ:
+    case MD_P_SFSM_GAMMA1: case MD_P_SFSM_GAMMA2: case MD_P_SFSM_GAMMA3: case MD_P_SFSM_WAIT_R:
+    case MD_P_SFSM_LOST_CYCLES: case MD_P_SFSM_SNR_DROP: case MD_P_SC_TOL_UM: case MD_P_SFSM_SNR_MIN:
+    case MD_P_MHTC_Q_UV: case MD_P_TRACKER: case MD_P_GUARD_ENABLE: case MD_P_GUARD_GROWTH_STOP:
+    case MD_P_GUARD_AMP_SLOW: case MD_P_GUARD_AMP_STOP: case MD_P_GUARD_STEP_NEAR_UM: case MD_P_GUARD_RETRACT_UM:
         return md_params_get(&node->params, id);
     case MD_P_COUNT:
     default:

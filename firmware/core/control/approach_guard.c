@@ -91,7 +91,7 @@ md_status_t ag_robust_amplitude_i16(const int16_t *wave, size_t n, size_t stride
     if (n < (size_t)k) {
         return MD_OK;
     }
-    int32_t top[AG_TOP_K_MAX];
+    int32_t top[AG_TOP_K_MAX] = {0};
     size_t filled = 0u;
     for (size_t j = 0u; j < n; ++j) {
         keep_top(top, k, &filled, window_ptp(&wave[j * stride], d_w));
