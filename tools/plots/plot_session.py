@@ -107,9 +107,18 @@ def new_figure(rows, cols, w=5.0, h=3.4):
     return fig, ax
 
 
+def has_content(ax):
+    """A panel shows something: a line with data, a filled area, bars, an image or a note saying why not."""
+    return (any(len(ln.get_xdata()) > 0 for ln in ax.lines) or any(len(c.get_paths()) > 0 for c in ax.collections)
+            or bool(ax.patches) or bool(ax.images) or bool(ax.texts))
+
+
 def check_layout(fig, name):
-    """Every title and legend lies inside the figure; raises otherwise, so a cut-off title is an error, not a
-    picture a user has to squint at."""
+    """Every title and legend lies inside the figure and no panel is empty; raises otherwise, so a cut-off title
+    or a blank panel is an error, not a picture a user has to squint at."""
+    for ax in fig.axes:
+        if ax.get_visible() and ax.axison and not has_content(ax):  # axis("off"): grid filler, not a panel
+            raise RuntimeError(f"{name}: panel {ax.get_title()!r} is empty")
     fig.canvas.draw()
     r = fig.canvas.get_renderer()
     box = fig.bbox
@@ -285,7 +294,8 @@ def best_rank_history(msgs):
     (firmware/app/md_telemetry.c), the parent index being its rank in the previous generation. The chain
     stops where the tracker's interval count does not step by one (a skipped cycle, a tracker restart)."""
     hist, rank = [], 0
-    for i in range(len(msgs) - 1, -1, -1):
+    last = max((i for i, m in enumerate(msgs) if m.num_hypotheses > 0), default=-1)  # a skipped last cycle
+    for i in range(last, -1, -1):
         m = msgs[i]
         ks = [k for k in range(m.num_hypotheses) if m.rank[k] == rank]
         if not ks:
@@ -323,6 +333,9 @@ def plot_hypotheses(s, out, els, label=""):
         msgs.sort(key=lambda m: m.cycle)
         bh = np.array(best_rank_history(msgs)).reshape(-1, 2)
         ax[r, 2].plot(bh[:, 0], bh[:, 1] + 1, "o-", ms=3, color="k", drawstyle="steps-mid")
+        if len(bh) == 0:
+            ax[r, 2].text(0.5, 0.5, "no hypothesis telemetry (TLM_HYP)\nfor this electrode", ha="center",
+                          va="center", transform=ax[r, 2].transAxes, color="0.3")
         ax[r, 2].set_ylim(max(n_rank, 2) + 0.5, 0.5)
         ax[r, 2].set_yticks(range(1, max(n_rank, 2) + 1))
         ax[r, 2].set(title=f"electrode {e}: rank of the final best hypothesis", xlabel="time (min)",
