@@ -102,6 +102,7 @@ def build(work):
             "TLM_STATUS", Electrode=0, SfsmState=states[k], Cycle=k, Depth_um=1100.0 + 40 * k,
             TargetDepth_um=1100.0, Snr=5.0, Iqm=20.0, DominantTrack=dom[k], NumTracks=2, NumHypotheses=8,
             NumSpikes=len(dets)))
+    truth.append({"type": "death", "electrode": 0, "neuron": 2, "t_s": 4.0, "distance_um": 11.0})
     truth.append({"type": "death", "electrode": 0, "neuron": 1, "t_s": 25.0, "distance_um": 10.0})
     truth.append({"type": "death", "electrode": 0, "neuron": 0, "t_s": 45.0, "distance_um": 10.0})
     os.makedirs(work, exist_ok=True)
@@ -133,6 +134,8 @@ def main():
     # final state: the third interval, tip 1180, neuron 0's peak at 1200
     check(abs(e["final_peak_distance_um"] - 20.0) < 1e-9, "final distance |1180 - 1200|")
     check(e["neurons_damaged"] == 1, "one death before the end of the third interval (30.1 s)")
+    check(e["neurons_damaged_at_insertion"] == 1 and "2" not in e["closest_approach_by_neuron"],
+          "a death before the first interval ends is the insertion's, apart from the controller's")
     check(abs(e["held_fraction"] - 1.0) < 1e-12 and e["reisolations"] == 0, "held after isolation, no re-isolation")
     t = e["tracking"]
     # per interval: neuron 0 -> track 7: m=4, agreement 4/(4+5-4) = 0.8; neuron 1 in range

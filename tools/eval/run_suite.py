@@ -195,6 +195,7 @@ COLUMNS = [
 SAFETY_COLUMNS = [
     ("runs (failed)", lambda s: f"{s['sessions']} ({s['sessions_failed']})"),
     ("neurons damaged (runs)", lambda s: f"{s['neurons_damaged_total']} ({s['sessions_with_damage']})"),
+    ("killed by the insertion", lambda s: str(s.get("neurons_damaged_at_insertion_total", 0))),
     ("closest approach: min / 5 % / median (µm)", lambda s: " / ".join(
         fmt(s[k], ".1f") for k in ("closest_approach_min_um", "closest_approach_p05_um", "closest_approach_median_um"))),
     ("isolation rate", lambda s: fmt(s["isolation_rate"], ".0%")),

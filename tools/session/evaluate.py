@@ -79,6 +79,7 @@ def summarise(results):
         "median_final_distance_um_isolated": median(dist_iso),
         "median_final_distance_um_all": median(dist_all),
         "neurons_damaged_total": sum(e["neurons_damaged"] for e in els),
+        "neurons_damaged_at_insertion_total": sum(e.get("neurons_damaged_at_insertion", 0) for e in els),
         "sessions_with_damage": sum(1 for _, _, _, r, _ in results
                                     if r and any(e["neurons_damaged"] for e in r["electrodes"])),
         "reisolation_rate": (sum(1 for e in iso if e["reisolations"] > 0) / len(iso)) if iso else None,

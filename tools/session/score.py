@@ -356,8 +356,16 @@ def isolation_metrics(e, ivs, track_neuron, truth):
         dist = abs(fstate["tip_um"] - neurons[dominant]["snr_peak_depth_um"])
     end_us = max([iv.end_us for iv in ivs if iv.end_us is not None] or [0])
     deaths = [d for d in truth["deaths"].get(e, []) if d["t_s"] * 1e6 <= end_us]
+    # A neuron that dies before the electrode's first interval has ended was
+    # killed by the insertion (the tip placed at the start depth, the tissue
+    # relaxing onto it), not by a decision: the controller had no data yet.
+    control_us = ivs[0].end_us if ivs and ivs[0].end_us is not None else 0
+    at_insertion = [d for d in deaths if d["t_s"] * 1e6 < control_us]
+    deaths = [d for d in deaths if d["t_s"] * 1e6 >= control_us]
     damaged = len(deaths)
     closest = closest_approach(fstate, deaths)
+    for d in at_insertion:
+        closest.pop(d["neuron"], None)
     held, reiso = None, 0
     if first is not None:
         first_neuron = track_neuron.get(int(ivs[first].status["DominantTrack"]))
@@ -377,6 +385,7 @@ def isolation_metrics(e, ivs, track_neuron, truth):
         "final_tip_um": fstate["tip_um"] if fstate else None,
         "final_state": states[-1] if states else None,
         "neurons_damaged": damaged,
+        "neurons_damaged_at_insertion": len(at_insertion),
         "closest_approach_um": min(closest.values()) if closest else None,
         "closest_approach_by_neuron": {str(k): v for k, v in sorted(closest.items())},
         "guard_limited_cycles": sum(1 for iv in ivs if int(iv.status["Flags"]) & TLM_F_GUARD_LIMITED),
