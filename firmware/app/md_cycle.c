@@ -65,6 +65,8 @@ static void guard_cfg_from(const md_params_t *p, ag_config_t *cfg)
     cfg->amp_stop = md_params_get(p, MD_P_GUARD_AMP_STOP);
     cfg->step_near_um = md_params_get(p, MD_P_GUARD_STEP_NEAR_UM);
     cfg->retract_um = md_params_get(p, MD_P_GUARD_RETRACT_UM);
+    cfg->climb_free_frac = md_params_get(p, MD_P_GUARD_CLIMB_FRAC);
+    cfg->climb_frac = fmin(cfg->climb_frac, cfg->climb_free_frac); /* a unit at its ceiling is known to be close */
 }
 
 static void mhtc_cfg_from(const md_params_t *p, mhtc_config_t *cfg)

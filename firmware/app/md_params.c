@@ -88,6 +88,8 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                                  "approach guard: longest advance at or above guard_amp_slow"},
     [MD_P_GUARD_RETRACT_UM] = {0x2055u, "guard_retract_um", "um", 0.5, 100.0, 10.0, MD_PARAM_F_MOTION,
                                "approach guard: retraction when the unit comes closer while the electrode stands"},
+    [MD_P_GUARD_CLIMB_FRAC] = {0x2056u, "guard_climb_frac", "", 0.01, 2.0, 0.15, MD_PARAM_F_MOTION,
+                               "approach guard: rise of a unit over its lowest level at a standstill that retracts"},
     [MD_P_NODE_STATE] = {0x3000u, "node_state", "", 0.0, 255.0, 0.0, RO_LIVE, "NMT state (HEARTBEAT NodeState)"},
     [MD_P_ESTOP_LATCHED] = {0x3001u, "estop_latched", "", 0.0, 1.0, 0.0, RO_LIVE, "1 while the e-stop is latched"},
     [MD_P_UPTIME_S] = {0x3002u, "uptime_s", "s", 0.0, U32_MAX_D, 0.0, RO_LIVE, "seconds since power-on"},

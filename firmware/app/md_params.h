@@ -70,6 +70,7 @@ typedef enum {
     MD_P_GUARD_AMP_STOP,             ///< approach guard: amplitude that blocks advancing
     MD_P_GUARD_STEP_NEAR_UM,         ///< approach guard: longest advance at or above guard_amp_slow
     MD_P_GUARD_RETRACT_UM,           ///< approach guard: retraction when the unit climbs at a barrier
+    MD_P_GUARD_CLIMB_FRAC,           ///< approach guard: climb over the lowest standstill level that retracts
     /* diagnostics (0x3xxx), read-only */
     MD_P_NODE_STATE,
     MD_P_ESTOP_LATCHED,

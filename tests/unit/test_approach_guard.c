@@ -1,7 +1,8 @@
 /// @file test_approach_guard.c
 /// Approach guard on scripted amplitude sequences: a neuron on the path
 /// (steep growth), a neuron passed at a safe lateral distance (shallow
-/// growth), noise, a unit that climbs while the electrode stands, artefact
+/// growth), noise, a unit that climbs while the electrode stands (fast, or
+/// creeping slowly as relaxing tissue carries it), artefact
 /// bursts that must not freeze the search, amp_stop, invalid input, and the
 /// robust amplitude itself.
 #include <math.h>
@@ -131,6 +132,29 @@ static void test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way(vo
     TEST_ASSERT_TRUE(z < 100.0);
 }
 
+static void test_a_slow_creep_towards_a_standing_tip_adds_up_to_a_retraction(void)
+{
+    /* Relaxing tissue carries a neuron 0.3 µm per interval towards the tip,
+     * which stands 22 µm away: each interval's rise (~1 %) hides in noise of
+     * a few per cent, the sum must not. The tip must give way before the
+     * damage radius (12 µm) with a margin. */
+    double z = 100.0;
+    double soma = 122.0;
+    double closest = HUGE_VAL;
+    uint32_t x = 12345u;
+    for (int k = 0; k < 120; ++k) {
+        x = x * 1103515245u + 12345u;
+        const double noise = ((double)(x >> 16 & 0x7FFFu) / 32767.0 - 0.5) * 0.08;
+        closest = fmin(closest, hypot(6.0, soma - z));
+        const ag_output_t out = step1(law(50.0, 6.0, soma - z) * (1.0 + noise), z, 0.0);
+        TEST_ASSERT_TRUE(out.step_um <= 0.0);
+        z += out.step_um;
+        soma -= 0.3;
+    }
+    TEST_ASSERT_TRUE(g.retractions >= 1u);
+    TEST_ASSERT_TRUE(closest > 15.0);
+}
+
 static void test_a_unit_saturating_at_a_ceiling_holds_the_electrode_without_retracting(void)
 {
     const double z = approach_until_ceiling();
@@ -235,6 +259,7 @@ int main(void)
     RUN_TEST(test_advances_are_shortened_once_a_unit_is_loud);
     RUN_TEST(test_noise_at_a_standstill_never_retracts);
     RUN_TEST(test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way);
+    RUN_TEST(test_a_slow_creep_towards_a_standing_tip_adds_up_to_a_retraction);
     RUN_TEST(test_a_unit_saturating_at_a_ceiling_holds_the_electrode_without_retracting);
     RUN_TEST(test_the_electrode_follows_a_unit_that_moves_away);
     RUN_TEST(test_an_artefact_burst_does_not_freeze_the_search);

@@ -18,7 +18,7 @@ void ag_config_default(ag_config_t *cfg)
     cfg->amp_stop = 80.0;
     cfg->step_near_um = 10.0;
     cfg->climb_frac = 0.15;
-    cfg->climb_free_frac = 0.35;
+    cfg->climb_free_frac = 0.15;
     cfg->retract_um = 10.0;
     cfg->still_um = 3.0;
     cfg->top_k = 5u;
@@ -215,29 +215,44 @@ static void age_ceilings(ag_state_t *s, const ag_snapshot_t *now)
     s->n_ceil = kept;
 }
 
-static double median3(double a, double b, double c)
-{
-    return fmax(fmin(a, b), fmin(fmax(a, b), c));
-}
-
-/* A unit's level at a standstill: the median of its amplitude in this
- * interval and the two before, when all three were recorded at this depth
- * and saw it (one noisy interval moves a median of three by little). */
+/* A unit's level at a standstill: the mean of its amplitude in this
+ * interval and the AG_STILL_INTERVALS - 1 before, when all were recorded at
+ * this depth and saw it. Averaging six intervals shrinks the interval-to-
+ * interval noise (a few per cent) by about 2.4, so that a creep of a few per
+ * cent per minute stands out of it. */
 static bool still_level(const ag_state_t *s, const ag_snapshot_t *now, const ag_unit_t *u, double *level)
 {
     if (s->hist_n < AG_STILL_INTERVALS - 1u) {
         return false;
     }
-    double a[AG_STILL_INTERVALS] = {u->amp, 0.0, 0.0};
+    double sum = u->amp;
     for (uint8_t i = 0u; i + 1u < AG_STILL_INTERVALS; ++i) {
         const ag_snapshot_t *then = history_back(s, i);
-        a[i + 1u] = unit_amp(then, u->id);
-        if (fabs(then->depth_um - now->depth_um) >= s->cfg.still_um || !(a[i + 1u] > 0.0)) {
+        const double a = unit_amp(then, u->id);
+        if (fabs(then->depth_um - now->depth_um) >= s->cfg.still_um || !(a > 0.0)) {
             return false;
         }
+        sum += a;
     }
-    *level = median3(a[0], a[1], a[2]);
+    *level = sum / (double)AG_STILL_INTERVALS;
     return true;
+}
+
+/* Rule 3's reference: a unit's lowest level at this standstill, so that a
+ * slow approach (relaxing tissue creeps by a fraction of a µm per interval)
+ * adds up instead of hiding in the interval-to-interval noise. */
+static void lowest_level(ag_snapshot_t *ref, uint32_t id, double level)
+{
+    for (uint8_t k = 0u; k < ref->n; ++k) {
+        if (ref->unit[k].id == id) {
+            ref->unit[k].amp = fmin(ref->unit[k].amp, level);
+            return;
+        }
+    }
+    if (ref->n < AG_UNITS_MAX) {
+        ref->unit[ref->n] = (ag_unit_t){id, level};
+        ref->n++;
+    }
 }
 
 /* Rule 3: a unit came closer while the electrode stood still. */
@@ -258,10 +273,7 @@ static bool climbed(ag_state_t *s, const ag_snapshot_t *now, bool still)
         const double ref = unit_amp(&s->still_ref, u->id);
         up = up || (c != NULL && level >= (1.0 + s->cfg.climb_frac) * c->amp);
         up = up || (c == NULL && ref > 0.0 && level >= (1.0 + s->cfg.climb_free_frac) * ref);
-        if (!(ref > 0.0) && s->still_ref.n < AG_UNITS_MAX) {
-            s->still_ref.unit[s->still_ref.n] = (ag_unit_t){u->id, level};
-            s->still_ref.n++;
-        }
+        lowest_level(&s->still_ref, u->id, level);
     }
     return up;
 }

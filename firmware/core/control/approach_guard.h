@@ -31,12 +31,12 @@
 ///     whose growth reached growth_stop on two advances in a row is steep
 ///     like a neuron on the path: its present amplitude becomes its ceiling;
 ///  2. amp_stop is a ceiling for every unit, whatever its growth;
-///  3. a unit's level (median of its last AG_STILL_INTERVALS amplitudes, all
+///  3. a unit's level (mean of its last AG_STILL_INTERVALS amplitudes, all
 ///     at this depth; >= amp_slow) that climbed while the electrode stood
 ///     still — the unit came closer: tissue relaxation, drift — retracts by
 ///     retract_um: a climb to (1 + climb_frac) times its ceiling, or, for a
-///     unit without one, to (1 + climb_free_frac) times its first level at
-///     this standstill;
+///     unit without one, to (1 + climb_free_frac) times its lowest level at
+///     this standstill (a slow creep adds up);
 ///  4. an advance stops where the unit would reach its ceiling, predicted
 ///     with its growth (at least growth_stop): no advance at the ceiling,
 ///     and the electrode follows a unit that moves away. A ceiling whose
@@ -57,11 +57,13 @@
 #include "common/md_status.h"
 #include "md_config.h"
 
-#define AG_HISTORY 8u                       ///< intervals kept for the growth rule
+#define AG_HISTORY 8u                       ///< intervals kept for the growth and standstill rules
 #define AG_TOP_K_MAX 16u                    ///< largest k of the robust amplitude
 #define AG_UNITS_MAX (MD_MAX_TARGETS + 1u)  ///< units per interval: every track and the robust amplitude
 #define AG_UNIT_RAW UINT32_MAX              ///< unit id of the robust amplitude
-#define AG_STILL_INTERVALS 3u               ///< a unit's level at a standstill: median of this many intervals
+#define AG_STILL_INTERVALS 6u               ///< a unit's level at a standstill: mean of this many intervals
+
+_Static_assert(AG_STILL_INTERVALS >= 2u && AG_STILL_INTERVALS <= AG_HISTORY, "a standstill level needs that many intervals of history");
 
 /// One unit's amplitude in one interval (noise RMS units).
 typedef struct {
@@ -93,7 +95,7 @@ typedef struct {
     double amp_stop;         ///< a ceiling for every unit
     double step_near_um;     ///< longest advance at or above amp_slow
     double climb_frac;       ///< rise over a unit's ceiling that retracts (rule 3)
-    double climb_free_frac;  ///< rise over its first level at a standstill that retracts a unit without a ceiling
+    double climb_free_frac;  ///< rise over its lowest level at a standstill that retracts a unit without a ceiling
     double retract_um;       ///< retraction step
     double still_um;         ///< moves shorter than this count as standing still
     uint8_t top_k;           ///< robust amplitude = k-th largest window amplitude (1..AG_TOP_K_MAX)
@@ -115,7 +117,7 @@ typedef struct {
     ag_ceiling_t ceil[AG_UNITS_MAX];
     uint8_t n_ceil;
     ag_snapshot_t steep;        ///< units steep on the latest advance (rule 1 needs two in a row)
-    ag_snapshot_t still_ref;    ///< per unit, its first level at the current standstill (rule 3)
+    ag_snapshot_t still_ref;    ///< per unit, its lowest level at the current standstill (rule 3)
     double last_growth;         ///< largest unit growth of the latest interval (0 if none measured)
     uint32_t cycles, ceilings_set, retractions, lapses, limited, bad_inputs;
 } ag_state_t;
