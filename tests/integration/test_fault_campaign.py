@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""CI fault campaign (issue 8): one seed x every fault kind in scenarios/faults/ through the
+"""CI fault campaign: one seed x every fault kind in scenarios/faults/ through the
 in-process session, each frame log and truth checked by tools/safety/check_invariants.py.
 
 usage: test_fault_campaign.py --session BIN/microdrive-session --work DIR [--seeds N] [--cycles N]

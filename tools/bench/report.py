@@ -3,8 +3,8 @@
 
     report.py RAW_DIR OUT.md RUNS
 
-Standard library only. Every figure is printed against its target from
-issue 7; a figure that misses its target says so.
+Standard library only. Every figure is printed against its target (the
+budgets in docs/benchmarks.md); a figure that misses its target says so.
 """
 import re
 import subprocess
@@ -161,7 +161,7 @@ def main() -> int:
     w("| labels, outlier table, prediction, priors | < 0.3 M | < 0.3 M | < 0.3 M |")
     w(f"| **whole step** | **127,654,369** | **79,267,462** | **{pr('mhtc_step')}** |")
     w("")
-    w("### Before and after (perf work of issue 7)")
+    w("### Before and after the performance work")
     w("")
     w("Same interval and harness; the M7 counts of each step from `md-bench-m7` under QEMU, the host times from "
       "`md-bench` (Release, single runs on the shared VM, indicative only).")
