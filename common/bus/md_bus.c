@@ -51,6 +51,8 @@ void md_bus_set_closed(md_bus_t *bus)
     bus->ops = &md_bus_closed_ops;
     bus->impl = NULL;
     bus->sock.fd = -1;
+    bus->sock.diag_fd = -1;
+    bus->sock.flow = 0u;
 }
 
 void md_bus_why(char *why, size_t why_len, const char *fmt, ...)
@@ -147,12 +149,26 @@ int md_bus_sock_receive(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us, md
     return 0;
 }
 
+int md_bus_stats_format(const md_bus_stats_t *st, char *out, size_t len)
+{
+    return snprintf(out, len,
+                    "bus stats: rx %llu, rx overflow %llu, rx malformed %llu, tx %llu, tx errors %llu, "
+                    "flow waits %llu, flow timeouts %llu",
+                    (unsigned long long)st->rx_frames, (unsigned long long)st->rx_overflow,
+                    (unsigned long long)st->rx_malformed, (unsigned long long)st->tx_frames,
+                    (unsigned long long)st->tx_errors, (unsigned long long)st->tx_flow_waits,
+                    (unsigned long long)st->tx_flow_timeouts);
+}
+
 int md_bus_sock_fd(const md_bus_t *bus) { return bus->sock.fd; }
 
 void md_bus_sock_close(md_bus_t *bus)
 {
     if (bus->sock.fd >= 0) {
         (void)close(bus->sock.fd);
+    }
+    if (bus->sock.diag_fd >= 0) {
+        (void)close(bus->sock.diag_fd);
     }
     md_bus_set_closed(bus);
 }
@@ -233,7 +249,7 @@ static int open_auto(md_bus_t *bus, char *why, size_t why_len)
         md_bus_why(why, why_len, "auto: %s", reason);
         return 0;
     }
-    char udp_why[96];
+    char udp_why[160];
     const int urc = md_bus_open_udp(bus, (uint16_t)MD_BUS_UDP_PORT_DEFAULT, udp_why, sizeof udp_why);
     if (urc != 0) {
         md_bus_why(why, why_len, "auto: no SocketCAN (%s) and %s", reason, udp_why);
