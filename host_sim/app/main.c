@@ -150,6 +150,9 @@ static void print_stats(simproc_t *sp)
             (double)sp->plant.now_us * 1e-6, ps->rx_frames, ps->rx_ignored, ps->rx_malformed, ps->rx_foreign_clock,
             ps->steps,
             sp->tx_frames, sp->heartbeats, sp->tx_errors, sp->tx_retries, sp->raw_bus.stats.rx_overflow);
+    char bus_stats[200];
+    (void)md_bus_stats_format(&sp->raw_bus.stats, bus_stats, sizeof bus_stats);
+    fprintf(stderr, "microdrive-sim: %s\n", bus_stats);
     for (uint32_t i = 0; i < 3u; i++) {
         const simnode_t *n = simnode_plant_node(&sp->plant, SIMPROC_NODES[i]);
         fprintf(stderr,
