@@ -299,17 +299,20 @@ static bool udp_mark_stalled(md_bus_sock_t *s, uint64_t inode)
 }
 
 /// Flow control before one send: spends a credit, or drains our own socket
-/// and looks at the receivers until they have room for a window of frames.
+/// and looks at the receivers until they have room for a window of frames
+/// (without flow control: only drains, once per UDP_WINDOW_MAX frames).
 /// A receiver that stays full for flow_wait_us is marked stalled (counted in
 /// tx_flow_timeouts) and ignored until it reads again.
 static void udp_flow(md_bus_t *bus)
 {
     md_bus_sock_t *s = &bus->sock;
-    if (s->flow == 0u || s->flow_wait_us == 0) {
-        return;
-    }
     if (s->credit > 0u) {
         s->credit--;
+        return;
+    }
+    if (s->flow == 0u || s->flow_wait_us == 0) {
+        udp_drain_own(bus);   // no look at the receivers, but our echoes still go
+        s->credit = UDP_WINDOW_MAX - 1u;
         return;
     }
     bool waited = false;
