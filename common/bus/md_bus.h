@@ -102,6 +102,8 @@ typedef struct {
     /// arrive while it would wait).
     int (*receive)(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us);
     /// File descriptor usable with poll(), or -1 (in-process, or closed).
+    /// UDP: a send may have moved frames into the held ring (sock.held), which
+    /// poll() cannot see: poll only after receive(..., 0) returned 0.
     int (*fd)(const md_bus_t *bus);
     /// Releases the endpoint; safe to call twice. Afterwards every operation
     /// returns -EBADF.
