@@ -229,6 +229,9 @@ static void udp_room_msg(md_bus_sock_t *s, const struct nlmsghdr *nlh, in_addr_t
 static int udp_room(md_bus_t *bus, udp_room_t *room)
 {
     md_bus_sock_t *s = &bus->sock;
+    room->credit = UDP_WINDOW_MAX;
+    room->blocker = 0u;
+    room->saw_self = false;
     static uint32_t seq_counter;
     struct {
         struct nlmsghdr nlh;
@@ -251,9 +254,6 @@ static int udp_room(md_bus_t *bus, udp_room_t *room)
     }
     in_addr_t group = 0;
     (void)inet_pton(AF_INET, MD_BUS_UDP_GROUP, &group);
-    room->credit = UDP_WINDOW_MAX;
-    room->blocker = 0u;
-    room->saw_self = false;
     for (;;) {
         union {
             struct nlmsghdr align;
