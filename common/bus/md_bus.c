@@ -100,12 +100,22 @@ int md_bus_wait_fd(int fd, short events, int64_t deadline_us)
 /// Takes a cumulative kernel drop count. The cmsg of a queued datagram
 /// carries the count at its enqueue time, which can be older than one already
 /// read through SO_MEMINFO, so only forward steps count (wrap-aware).
+/// UDP with the echo filter: the kernel's count includes our own echoes,
+/// exactly one per datagram we sent, and at any moment at most tx_frames of
+/// them have been dropped, so kernel_total - tx_frames is never more than the
+/// real losses and equals them once our last echo has passed (microseconds
+/// after the send, on loopback). rx_overflow keeps the highest value seen.
 static void note_drops(md_bus_t *bus, uint32_t total)
 {
     const uint32_t step = total - bus->sock.kernel_drops;
     if (step != 0u && step < 0x80000000u) {
-        bus->stats.rx_overflow += step;
         bus->sock.kernel_drops = total;
+        bus->sock.kernel_total += step;
+    }
+    const uint64_t echoes = (bus->sock.echo_filter != 0u) ? bus->stats.tx_frames : 0u;
+    const uint64_t lost = (bus->sock.kernel_total > echoes) ? bus->sock.kernel_total - echoes : 0u;
+    if (lost > bus->stats.rx_overflow) {
+        bus->stats.rx_overflow = lost;
     }
 }
 

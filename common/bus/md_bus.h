@@ -28,9 +28,9 @@
 #define MD_BUS_UDP_RCVBUF_BYTES 212992
 /// UDP bus: longest a send waits for room in a receiver's socket buffer
 /// (flow control, docs/bus.md) before it marks that receiver stalled.
-#define MD_BUS_UDP_FLOW_WAIT_US 2000000
-/// UDP bus: frames a sender holds in user space when it drains its own socket
-/// while sending (its echoes are dropped there, other senders' frames kept).
+#define MD_BUS_UDP_FLOW_WAIT_US 10000000
+/// UDP bus: frames a sender waiting for room at a receiver moves out of its
+/// own socket (so that a peer waiting for room in ours progresses too).
 #define MD_BUS_UDP_HELD_LEN 64u
 /// UDP bus: receivers a sender can mark stalled at once (see md_bus_stats_t).
 #define MD_BUS_UDP_STALLED_MAX 4u
@@ -57,8 +57,8 @@ typedef struct {
                                ///< represented: SocketCAN RTR/error frames)
     uint64_t rx_overflow;      ///< frames lost because this endpoint's queue was full:
                                ///< in-process ring, or the kernel socket buffer
-                               ///< (SO_RXQ_OVFL) for SocketCAN and UDP, or the UDP
-                               ///< bus's held frames (MD_BUS_UDP_HELD_LEN) when full
+                               ///< (SO_RXQ_OVFL) for SocketCAN and UDP (UDP: less our own
+                               ///< echoes, which its socket filter drops)
     uint64_t tx_flow_waits;    ///< UDP: sends that waited for room at a receiver
     uint64_t tx_flow_timeouts; ///< UDP: waits that gave up after MD_BUS_UDP_FLOW_WAIT_US
                                ///< (that receiver is then ignored until it reads again;
@@ -72,6 +72,9 @@ typedef struct {
     uint32_t sender_id;        ///< UDP: random non-zero id stamped on our datagrams
     uint32_t tx_seq;           ///< UDP: sequence number of our next datagram
     uint32_t kernel_drops;     ///< last cumulative SO_RXQ_OVFL count seen
+    uint64_t kernel_total;     ///< the kernel's drop count since open, unwrapped
+    uint8_t echo_filter;       ///< UDP: our echoes are dropped by a socket filter, and
+                               ///< so counted in kernel_total (one per datagram sent)
     uint16_t port;             ///< UDP: the group's port
     uint8_t fd_capable;        ///< SocketCAN: interface MTU allows CAN FD frames
     uint8_t flow;              ///< UDP: flow control works (sock_diag answered at open)
@@ -102,7 +105,7 @@ typedef struct {
     /// arrive while it would wait).
     int (*receive)(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us);
     /// File descriptor usable with poll(), or -1 (in-process, or closed).
-    /// UDP: a send may have moved frames into the held ring (sock.held), which
+    /// UDP: a waiting send may have moved frames into the held ring (sock.held), which
     /// poll() cannot see: poll only after receive(..., 0) returned 0.
     int (*fd)(const md_bus_t *bus);
     /// Releases the endpoint; safe to call twice. Afterwards every operation

@@ -7,12 +7,13 @@
 /// else sees it" semantics.
 ///
 /// Nothing here depends on a large socket buffer (docs/bus.md, "Flow
-/// control"): a sender drains its own socket while it sends (its echoes never
-/// pile up in front of other senders' frames), and before every window of
-/// frames it asks the kernel (sock_diag) how much room the other members'
-/// receive buffers have left, waiting while the fullest one is short of room.
+/// control"): a socket filter drops our own echoes in the kernel (they never
+/// take room in our queue), and before every window of frames a sender asks
+/// the kernel (sock_diag) how much room the other members' receive buffers
+/// have left, waiting while the fullest one is short of room.
 #include <arpa/inet.h>
 #include <errno.h>
+#include <linux/filter.h>
 #include <linux/inet_diag.h>
 #include <linux/netlink.h>
 #include <linux/rtnetlink.h>
@@ -39,8 +40,6 @@
 #define UDP_WINDOW_MAX 64u
 /// Wait between two looks while a receiver is short of room.
 #define UDP_FLOW_POLL_US 250
-/// Datagrams one drain of our own socket reads at most.
-#define UDP_DRAIN_MAX 4096u
 
 static struct sockaddr_in group_addr(uint16_t port)
 {
@@ -107,31 +106,27 @@ static int udp_read_socket(md_bus_t *bus, md_frame_t *frame)
     return sender == bus->sock.sender_id ? 2 : 1;
 }
 
-/// Empties our socket without blocking: our own echoes are dropped, other
-/// senders' frames go to the held ring (in arrival order), or count as
-/// rx_overflow when it is full. A read error is left for receive to report.
-static void udp_drain_own(md_bus_t *bus)
+/// While a send waits for room: moves what is queued on our socket into the
+/// held ring, as long as the ring has room (never dropping), so that a peer
+/// waiting for room in *our* buffer makes progress too.
+static void udp_hold_queued(md_bus_t *bus)
 {
     md_bus_sock_t *s = &bus->sock;
-    for (unsigned i = 0; i < UDP_DRAIN_MAX; ++i) {
+    while (s->held_count < MD_BUS_UDP_HELD_LEN) {
         md_frame_t f;
         const int r = udp_read_socket(bus, &f);
         if (r <= 0) {
-            return;
+            return;   // empty, or an error that receive will report
         }
         if (r == 1) {
-            if (s->held_count < MD_BUS_UDP_HELD_LEN) {
-                s->held[(s->held_head + s->held_count) % MD_BUS_UDP_HELD_LEN] = f;
-                s->held_count++;
-            } else {
-                bus->stats.rx_overflow++;
-            }
+            s->held[(s->held_head + s->held_count) % MD_BUS_UDP_HELD_LEN] = f;
+            s->held_count++;
         }
     }
 }
 
-/// Reads one frame: first the frames held while sending (they arrived before
-/// anything still queued in the socket), then the socket. Returns 1 frame, 2
+/// Reads one frame: first the frames held while a send waited (they arrived
+/// before anything still queued in the socket), then the socket. Returns 1 frame, 2
 /// discarded (own/malformed), 0 nothing queued, negative error.
 static int udp_read_one(md_bus_t *bus, md_frame_t *frame)
 {
@@ -298,27 +293,24 @@ static bool udp_mark_stalled(md_bus_sock_t *s, uint64_t inode)
     return false;
 }
 
-/// Flow control before one send: spends a credit, or drains our own socket
-/// and looks at the receivers until they have room for a window of frames
-/// (without flow control: only drains, once per UDP_WINDOW_MAX frames).
-/// A receiver that stays full for flow_wait_us is marked stalled (counted in
-/// tx_flow_timeouts) and ignored until it reads again.
+/// Flow control before one send: spends a credit, or looks at the receivers
+/// until they have room for a window of frames. While it waits it keeps
+/// reading its own socket into the held ring (two senders waiting for each
+/// other both progress). A receiver that stays full for flow_wait_us is
+/// marked stalled (counted in tx_flow_timeouts) and ignored until it reads.
 static void udp_flow(md_bus_t *bus)
 {
     md_bus_sock_t *s = &bus->sock;
-    if (s->credit > 0u) {
-        s->credit--;
+    if (s->flow == 0u || s->flow_wait_us == 0) {
         return;
     }
-    if (s->flow == 0u || s->flow_wait_us == 0) {
-        udp_drain_own(bus);   // no look at the receivers, but our echoes still go
-        s->credit = UDP_WINDOW_MAX - 1u;
+    if (s->credit > 0u) {
+        s->credit--;
         return;
     }
     bool waited = false;
     int64_t deadline_us = 0;
     for (;;) {
-        udp_drain_own(bus);
         udp_room_t room;
         if (udp_room(bus, &room) != 0) {
             bus->stats.tx_flow_timeouts++;   // cannot look: this frame goes out unchecked
@@ -341,8 +333,14 @@ static void udp_flow(md_bus_t *bus)
             deadline_us = now + s->flow_wait_us;
             continue;
         }
+        udp_hold_queued(bus);
         const int64_t until = (now + UDP_FLOW_POLL_US < deadline_us) ? now + UDP_FLOW_POLL_US : deadline_us;
-        (void)md_bus_wait_fd(s->fd, POLLIN, until);   // a frame for us ends the wait early: drained above
+        if (s->held_count < MD_BUS_UDP_HELD_LEN) {
+            (void)md_bus_wait_fd(s->fd, POLLIN, until);   // a frame for us ends the wait early
+        } else {
+            const struct timespec pause = {0, (long)(until - now) * 1000L};
+            (void)nanosleep(&pause, NULL);
+        }
     }
 }
 
@@ -419,6 +417,26 @@ static uint32_t new_sender_id(void)
         }
     }
     return id == 0u ? 1u : id;
+}
+
+/// Attaches a classic BPF socket filter that drops datagrams carrying our
+/// sender id (wire offset 4, after the 8-byte UDP header the filter sees):
+/// our own echoes never take room in our receive queue. The kernel counts
+/// what a filter drops in the socket's drop count; note_drops (md_bus.c)
+/// subtracts one echo per datagram sent. Shorter datagrams pass (receive
+/// counts them malformed). Returns 0 or -errno.
+static int udp_filter_echoes(int fd, uint32_t sender_id)
+{
+    struct sock_filter code[] = {
+        BPF_STMT(BPF_LD | BPF_W | BPF_LEN, 0),
+        BPF_JUMP(BPF_JMP | BPF_JGE | BPF_K, 8u + 8u, 0, 2),   // UDP header + magic..sender id
+        BPF_STMT(BPF_LD | BPF_W | BPF_ABS, 8u + 4u),            // sender id, big-endian as on the wire
+        BPF_JUMP(BPF_JMP | BPF_JEQ | BPF_K, sender_id, 1, 0),
+        BPF_STMT(BPF_RET | BPF_K, 0xFFFFFFFFu),                 // keep
+        BPF_STMT(BPF_RET | BPF_K, 0u),                          // our echo: drop
+    };
+    const struct sock_fprog prog = {.len = (unsigned short)(sizeof code / sizeof code[0]), .filter = code};
+    return setsockopt(fd, SOL_SOCKET, SO_ATTACH_FILTER, &prog, sizeof prog) == 0 ? 0 : -errno;
 }
 
 /// Sets up the flow control: a sock_diag socket, our socket's inode, and one
@@ -500,13 +518,21 @@ int md_bus_open_udp(md_bus_t *bus, uint16_t port, char *why, size_t why_len)
     (void)snprintf(bus->name, sizeof bus->name, "udp:%s:%u", MD_BUS_UDP_GROUP, (unsigned)port);
     bus->impl = s;
     bus->ops = &udp_ops;
-    const int frc = udp_flow_open(bus);
+    // Echoes not filtered: they are dropped on receive (sender id), but a
+    // long send then fills our queue with them, so flow control is off too.
+    int frc = udp_filter_echoes(fd, s->sender_id);
+    const char *fwhat = "echo filter";
     if (frc == 0) {
-        md_bus_why(why, why_len, "UDP multicast %s:%u on loopback (TTL 0), flow control, rcvbuf %d B",
+        s->echo_filter = 1u;
+        fwhat = "sock_diag";
+        frc = udp_flow_open(bus);
+    }
+    if (frc == 0) {
+        md_bus_why(why, why_len, "UDP multicast %s:%u on loopback (TTL 0), echo filter, flow control, rcvbuf %d B",
                    MD_BUS_UDP_GROUP, (unsigned)port, s->rcvbuf);
     } else {
-        md_bus_why(why, why_len, "UDP multicast %s:%u on loopback (TTL 0), NO flow control (sock_diag: %s), rcvbuf %d B",
-                   MD_BUS_UDP_GROUP, (unsigned)port, strerror(-frc), s->rcvbuf);
+        md_bus_why(why, why_len, "UDP multicast %s:%u on loopback (TTL 0), NO flow control (%s: %s), rcvbuf %d B",
+                   MD_BUS_UDP_GROUP, (unsigned)port, fwhat, strerror(-frc), s->rcvbuf);
     }
     return 0;
 }
