@@ -140,7 +140,7 @@ static void warn_buffer_limits(int fd)
     const long rmem_max = read_rmem_max();
     if (g_rec.kind == MD_BUS_UDP && g_rec.sock.flow == 0u) {
         fprintf(stderr,
-                "microdrive-session: WARNING: the UDP bus has no flow control here (sock_diag unavailable): a "
+                "microdrive-session: WARNING: the UDP bus has no flow control here (the bus line says why): a "
                 "process that falls behind loses frames once its %d-byte socket buffer is full "
                 "(net.core.rmem_max %ld); see docs/bus.md\n",
                 granted, rmem_max);
