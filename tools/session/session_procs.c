@@ -70,20 +70,26 @@ static pid_t spawn_logged(char *const argv[], const char *log_path)
     return pid;
 }
 
-/* SIGTERM, a bounded wait, then SIGKILL. Returns the exit status or -1. */
-static int stop_child(pid_t pid)
+static int record_slice(session_track_t *t, int64_t slice_us);
+
+/* SIGTERM, a bounded wait, then SIGKILL. Returns the exit status or -1.
+ * The recorder keeps reading meanwhile: the simulator may be in the middle
+ * of a batch, and on UDP its flow control waits for every reader, the
+ * recorder included (a recorder that stopped reading for 10 s would be
+ * marked stalled and lose the rest of the batch). */
+static int stop_child(pid_t pid, session_track_t *t)
 {
     int status = 0;
     if (pid <= 0) {
         return -1;
     }
     (void)kill(pid, SIGTERM);
-    for (int i = 0; i < PROCS_TERM_WAIT_MS / 10; i++) {
+    const uint64_t t0 = mono_us();
+    while (mono_us() - t0 < (uint64_t)PROCS_TERM_WAIT_MS * 1000u) {
         if (waitpid(pid, &status, WNOHANG) == pid) {
             return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
         }
-        const struct timespec ten_ms = {0, 10000000L};
-        (void)nanosleep(&ten_ms, NULL);
+        (void)record_slice(t, 10000);
     }
     (void)kill(pid, SIGKILL);
     (void)waitpid(pid, &status, 0);
@@ -320,8 +326,8 @@ session_end_t session_run_procs(const session_opts_t *o, session_track_t *t, cha
     if (end == SESSION_END_GOAL) {
         end = procs_loop(o, t, fw, sim);
     }
-    (void)stop_child(fw);
-    (void)stop_child(sim);
+    (void)stop_child(fw, t);
+    (void)stop_child(sim, t);
     (void)record_slice(t, 200000);   /* the last frames in flight */
     if (report_losses(o)) {
         fprintf(stderr, "microdrive-session: frames were lost on the bus: the report could be wrong\n");
