@@ -3,14 +3,24 @@
 # is loopback (up, with a multicast route), so a test's packets cannot reach
 # any other machine, and parallel tests cannot hear each other.
 #
-#   scripts/netns-run.sh CMD [ARGS...]
+#   scripts/netns-run.sh [--unprivileged] CMD [ARGS...]
+#
+# --unprivileged: always a new user namespace too (unshare -rn), even for
+# root: the command then has no CAP_NET_ADMIN in the initial namespace, so
+# the kernel refuses SO_RCVBUFFORCE and caps socket buffers at
+# net.core.rmem_max, as for any ordinary user.
 #
 # Needs unshare(1) from util-linux and ip(8) from iproute2, and the right to
 # create user + network namespaces (root, or unprivileged user namespaces).
 # Exit status: CMD's, or 125 if the namespace could not be set up.
 set -eu
+unprivileged=0
+if [ "${1:-}" = "--unprivileged" ]; then
+    unprivileged=1
+    shift
+fi
 if [ "$#" -eq 0 ]; then
-    echo "usage: $0 CMD [ARGS...]" >&2
+    echo "usage: $0 [--unprivileged] CMD [ARGS...]" >&2
     exit 2
 fi
 for tool in unshare ip; do
@@ -24,7 +34,7 @@ done
 # user namespace, and the bus endpoints need large receive buffers to ride
 # out a recording's frame burst (docs/bus.md). Anyone else gets -rn.
 ns_flags=-rn
-if [ "$(id -u)" -eq 0 ] && unshare -n true 2>/dev/null; then
+if [ "$unprivileged" -eq 0 ] && [ "$(id -u)" -eq 0 ] && unshare -n true 2>/dev/null; then
     ns_flags=-n
 fi
 if ! unshare $ns_flags true 2>/dev/null; then

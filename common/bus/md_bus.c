@@ -51,6 +51,8 @@ void md_bus_set_closed(md_bus_t *bus)
     bus->ops = &md_bus_closed_ops;
     bus->impl = NULL;
     bus->sock.fd = -1;
+    bus->sock.diag_fd = -1;
+    bus->sock.flow = 0u;
 }
 
 void md_bus_why(char *why, size_t why_len, const char *fmt, ...)
@@ -98,12 +100,22 @@ int md_bus_wait_fd(int fd, short events, int64_t deadline_us)
 /// Takes a cumulative kernel drop count. The cmsg of a queued datagram
 /// carries the count at its enqueue time, which can be older than one already
 /// read through SO_MEMINFO, so only forward steps count (wrap-aware).
+/// UDP with the echo filter: the kernel's count includes our own echoes,
+/// exactly one per datagram we sent, and at any moment at most tx_frames of
+/// them have been dropped, so kernel_total - tx_frames is never more than the
+/// real losses and equals them once our last echo has passed (microseconds
+/// after the send, on loopback). rx_overflow keeps the highest value seen.
 static void note_drops(md_bus_t *bus, uint32_t total)
 {
     const uint32_t step = total - bus->sock.kernel_drops;
     if (step != 0u && step < 0x80000000u) {
-        bus->stats.rx_overflow += step;
         bus->sock.kernel_drops = total;
+        bus->sock.kernel_total += step;
+    }
+    const uint64_t echoes = (bus->sock.echo_filter != 0u) ? bus->stats.tx_frames : 0u;
+    const uint64_t lost = (bus->sock.kernel_total > echoes) ? bus->sock.kernel_total - echoes : 0u;
+    if (lost > bus->stats.rx_overflow) {
+        bus->stats.rx_overflow = lost;
     }
 }
 
@@ -147,12 +159,26 @@ int md_bus_sock_receive(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us, md
     return 0;
 }
 
+int md_bus_stats_format(const md_bus_stats_t *st, char *out, size_t len)
+{
+    return snprintf(out, len,
+                    "bus stats: rx %llu, rx overflow %llu, rx malformed %llu, tx %llu, tx errors %llu, "
+                    "flow waits %llu, flow timeouts %llu",
+                    (unsigned long long)st->rx_frames, (unsigned long long)st->rx_overflow,
+                    (unsigned long long)st->rx_malformed, (unsigned long long)st->tx_frames,
+                    (unsigned long long)st->tx_errors, (unsigned long long)st->tx_flow_waits,
+                    (unsigned long long)st->tx_flow_timeouts);
+}
+
 int md_bus_sock_fd(const md_bus_t *bus) { return bus->sock.fd; }
 
 void md_bus_sock_close(md_bus_t *bus)
 {
     if (bus->sock.fd >= 0) {
         (void)close(bus->sock.fd);
+    }
+    if (bus->sock.diag_fd >= 0) {
+        (void)close(bus->sock.diag_fd);
     }
     md_bus_set_closed(bus);
 }
@@ -233,7 +259,7 @@ static int open_auto(md_bus_t *bus, char *why, size_t why_len)
         md_bus_why(why, why_len, "auto: %s", reason);
         return 0;
     }
-    char udp_why[96];
+    char udp_why[160];
     const int urc = md_bus_open_udp(bus, (uint16_t)MD_BUS_UDP_PORT_DEFAULT, udp_why, sizeof udp_why);
     if (urc != 0) {
         md_bus_why(why, why_len, "auto: no SocketCAN (%s) and %s", reason, udp_why);

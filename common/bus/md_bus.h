@@ -22,6 +22,18 @@
 /// UDP bus: administratively scoped group (RFC 2365), joined on loopback only.
 #define MD_BUS_UDP_GROUP "239.71.0.1"
 #define MD_BUS_UDP_PORT_DEFAULT 57731u
+/// UDP bus: receive buffer each endpoint asks for with plain SO_RCVBUF (never
+/// SO_RCVBUFFORCE): the stock net.core.rmem_max, so every user gets the same
+/// buffer (the kernel doubles it: 425984 bytes, ~500 datagrams).
+#define MD_BUS_UDP_RCVBUF_BYTES 212992
+/// UDP bus: longest a send waits for room in a receiver's socket buffer
+/// (flow control, docs/bus.md) before it marks that receiver stalled.
+#define MD_BUS_UDP_FLOW_WAIT_US 10000000
+/// UDP bus: frames a sender waiting for room at a receiver moves out of its
+/// own socket (so that a peer waiting for room in ours progresses too).
+#define MD_BUS_UDP_HELD_LEN 64u
+/// UDP bus: receivers a sender can mark stalled at once (see md_bus_stats_t).
+#define MD_BUS_UDP_STALLED_MAX 4u
 /// In-process bus: frames each endpoint can queue before it overflows (power of 2).
 #define MD_BUS_INPROC_QUEUE_LEN 4096u
 /// In-process bus: endpoints open at once in one process, over all buses.
@@ -45,7 +57,12 @@ typedef struct {
                                ///< represented: SocketCAN RTR/error frames)
     uint64_t rx_overflow;      ///< frames lost because this endpoint's queue was full:
                                ///< in-process ring, or the kernel socket buffer
-                               ///< (SO_RXQ_OVFL) for SocketCAN and UDP
+                               ///< (SO_RXQ_OVFL) for SocketCAN and UDP (UDP: less our own
+                               ///< echoes, which its socket filter drops)
+    uint64_t tx_flow_waits;    ///< UDP: sends that waited for room at a receiver
+    uint64_t tx_flow_timeouts; ///< UDP: waits that gave up after MD_BUS_UDP_FLOW_WAIT_US
+                               ///< (that receiver is then ignored until it reads again;
+                               ///< whatever it loses counts in its rx_overflow)
 } md_bus_stats_t;
 
 /// State of the socket buses (SocketCAN, UDP), kept inside md_bus_t so that no
@@ -55,8 +72,20 @@ typedef struct {
     uint32_t sender_id;        ///< UDP: random non-zero id stamped on our datagrams
     uint32_t tx_seq;           ///< UDP: sequence number of our next datagram
     uint32_t kernel_drops;     ///< last cumulative SO_RXQ_OVFL count seen
+    uint64_t kernel_total;     ///< the kernel's drop count since open, unwrapped
+    uint8_t echo_filter;       ///< UDP: our echoes are dropped by a socket filter, and
+                               ///< so counted in kernel_total (one per datagram sent)
     uint16_t port;             ///< UDP: the group's port
     uint8_t fd_capable;        ///< SocketCAN: interface MTU allows CAN FD frames
+    uint8_t flow;              ///< UDP: flow control works (sock_diag answered at open)
+    int rcvbuf;                ///< receive buffer the kernel granted (SO_RCVBUF read back), bytes
+    int diag_fd;               ///< UDP: NETLINK_SOCK_DIAG socket of the flow control, or -1
+    uint64_t inode;            ///< UDP: our socket's inode (to tell it apart in sock_diag)
+    uint32_t credit;           ///< UDP: frames we may send before we look at the receivers again
+    int64_t flow_wait_us;      ///< UDP: longest flow-control wait (0: no flow control)
+    uint64_t stalled[MD_BUS_UDP_STALLED_MAX];  ///< UDP: inodes of receivers marked stalled
+    uint32_t held_head, held_count;            ///< UDP: ring of frames read while sending
+    md_frame_t held[MD_BUS_UDP_HELD_LEN];
 } md_bus_sock_t;
 
 typedef struct md_bus md_bus_t;
@@ -76,6 +105,8 @@ typedef struct {
     /// arrive while it would wait).
     int (*receive)(md_bus_t *bus, md_frame_t *frame, int64_t timeout_us);
     /// File descriptor usable with poll(), or -1 (in-process, or closed).
+    /// UDP: a waiting send may have moved frames into the held ring (sock.held), which
+    /// poll() cannot see: poll only after receive(..., 0) returned 0.
     int (*fd)(const md_bus_t *bus);
     /// Releases the endpoint; safe to call twice. Afterwards every operation
     /// returns -EBADF.
@@ -109,6 +140,19 @@ static inline int md_bus_receive(md_bus_t *bus, md_frame_t *f, int64_t timeout_u
     return bus->ops->receive(bus, f, timeout_us);
 }
 static inline int md_bus_fd(const md_bus_t *bus) { return bus->ops->fd(bus); }
+
+/// Writes the endpoint's counters as one line (no newline) that
+/// microdrive-session reads back from the logs of its processes:
+/// "bus stats: rx N, rx overflow N, rx malformed N, tx N, tx errors N, flow waits N, flow timeouts N".
+/// Returns what snprintf returns.
+int md_bus_stats_format(const md_bus_stats_t *st, char *out, size_t len);
+
+/// UDP bus: sets the longest flow-control wait of this endpoint (default
+/// MD_BUS_UDP_FLOW_WAIT_US; 0 turns flow control off: sends never wait, a
+/// slow receiver overflows and counts it). Returns 0, -ENOTSUP if the bus is
+/// not UDP or its flow control is unavailable (then `bus->sock.flow` is 0),
+/// -EINVAL for a negative wait.
+int md_bus_udp_set_flow_wait(md_bus_t *bus, int64_t wait_us);
 static inline void md_bus_close(md_bus_t *bus) { bus->ops->close(bus); }
 
 #endif

@@ -267,6 +267,7 @@ int md_bus_fault_wrap(md_bus_fault_t *f, md_bus_t *inner, const md_bus_fault_par
     f->bus.kind = inner->kind;
     f->bus.impl = f;
     f->bus.sock.fd = -1;
+    f->bus.sock.diag_fd = -1;
     memcpy(f->bus.name, inner->name, sizeof f->bus.name);
     f->bus.name[sizeof f->bus.name - 1u] = '\0';
     return 0;

@@ -213,8 +213,12 @@ int md_bus_open_socketcan(md_bus_t *bus, const char *ifname, char *why, size_t w
         return rc;
     }
     bus->sock.fd = fd;
+    int granted = 0;
+    socklen_t glen = sizeof granted;
+    bus->sock.rcvbuf = (getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &granted, &glen) == 0) ? granted : 0;
     bus->sock.fd_capable = fd_capable ? 1u : 0u;
     bus->sock.kernel_drops = 0;
+    bus->sock.kernel_total = 0;
     bus->kind = MD_BUS_SOCKETCAN;
     (void)snprintf(bus->name, sizeof bus->name, "%s", ifname);
     bus->impl = &bus->sock;

@@ -38,6 +38,7 @@ typedef struct {
     uint32_t pace_fps;
     uint64_t pace_t0_us, pace_sent, last_tx_us;
     uint64_t tx_frames, tx_errors, tx_retries, heartbeats, hb_silenced;
+    uint64_t tx_abandoned;               ///< frames of the batch in progress not sent after SIGINT/SIGTERM
     uint32_t since_hb_check;
 } simproc_t;
 
@@ -120,6 +121,13 @@ static void pace(simproc_t *sp, uint64_t now)
 static int simproc_send(void *ctx, const md_frame_t *f)
 {
     simproc_t *sp = ctx;
+    if (g_stop != 0) {
+        /* Told to stop: the rest of the batch in progress is not sent, so
+         * the process exits at once even where a batch takes seconds of
+         * wall time (a loaded machine, flow control waiting for a reader). */
+        sp->tx_abandoned++;
+        return -ECANCELED;
+    }
     uint64_t now = mono_us();
     pace(sp, now);
     int rc = md_bus_send(sp->busp, f);
@@ -146,10 +154,15 @@ static void print_stats(simproc_t *sp)
     fprintf(stderr,
             "microdrive-sim: sim time %.6f s; rx %" PRIu64 " (ignored %" PRIu64 ", malformed %" PRIu64
             ", foreign clock %" PRIu64 ", steps %" PRIu64 "); tx %" PRIu64 " + %" PRIu64
-            " heartbeats, tx errors %" PRIu64 ", retries %" PRIu64 "; bus rx overflow %" PRIu64 "\n",
+            " heartbeats, tx errors %" PRIu64 ", retries %" PRIu64 ", not sent after the stop signal %" PRIu64
+            "; bus rx overflow %" PRIu64 "\n",
             (double)sp->plant.now_us * 1e-6, ps->rx_frames, ps->rx_ignored, ps->rx_malformed, ps->rx_foreign_clock,
             ps->steps,
-            sp->tx_frames, sp->heartbeats, sp->tx_errors, sp->tx_retries, sp->raw_bus.stats.rx_overflow);
+            sp->tx_frames, sp->heartbeats, sp->tx_errors, sp->tx_retries, sp->tx_abandoned,
+            sp->raw_bus.stats.rx_overflow);
+    char bus_stats[200];
+    (void)md_bus_stats_format(&sp->raw_bus.stats, bus_stats, sizeof bus_stats);
+    fprintf(stderr, "microdrive-sim: %s\n", bus_stats);
     for (uint32_t i = 0; i < 3u; i++) {
         const simnode_t *n = simnode_plant_node(&sp->plant, SIMPROC_NODES[i]);
         fprintf(stderr,

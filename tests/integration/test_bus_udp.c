@@ -21,6 +21,7 @@
 
 #define ARRIVE_US 2000000   // generous upper bound; returns as soon as the frame is there
 #define ABSENT_US 50000     // loopback delivers in microseconds; 50 ms of silence means "not sent"
+#define PEER_US 20000000    // a peer process's next frame: bounds a hang only (a loaded machine can starve a process for seconds)
 #define BUS_TEST_PATTERN 29u
 #include "bus_test_frames.h"
 
@@ -265,8 +266,9 @@ static void test_kernel_drops_are_counted_as_overflow(void)
     open_udp(a, "udp");
     md_bus_t *const b = &bus_ep[1];
     open_udp(b, "udp");
-    // b does not read while a floods: its socket buffer must overflow, even
-    // the 16 MiB one root gets (each datagram costs ~1 kB of buffer).
+    // Without flow control, b does not read while a floods: its socket
+    // buffer must overflow (each datagram costs ~1 kB of buffer).
+    TEST_ASSERT_EQUAL_INT(0, md_bus_udp_set_flow_wait(a, 0));
     const uint32_t n = 100000;
     for (uint32_t i = 0; i < n; ++i) {
         const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
@@ -281,6 +283,240 @@ static void test_kernel_drops_are_counted_as_overflow(void)
     TEST_MESSAGE(msg);
     TEST_ASSERT_GREATER_THAN_UINT(0, (unsigned)b->stats.rx_overflow);
     TEST_ASSERT_EQUAL_UINT64(a->stats.tx_frames, b->stats.rx_frames + b->stats.rx_overflow);  // nothing uncounted
+    TEST_ASSERT_EQUAL_UINT64(0, a->stats.tx_flow_waits);
+    TEST_ASSERT_EQUAL_UINT64(0, a->stats.rx_overflow);  // its 100000 filtered echoes are no loss
+    md_bus_close(a);
+    md_bus_close(b);
+}
+
+static void test_endpoints_ask_for_the_stock_receive_buffer_only(void)
+{
+    md_bus_t *const a = &bus_ep[0];
+    char why[200] = "";
+    TEST_ASSERT_EQUAL_INT(0, md_bus_open(a, "udp", why, sizeof why));
+    TEST_MESSAGE(why);
+    TEST_ASSERT_EQUAL_UINT8(1, a->sock.flow);
+    TEST_ASSERT_TRUE(strstr(why, "flow control") != NULL);
+    int v = 0;
+    socklen_t len = sizeof v;
+    TEST_ASSERT_EQUAL_INT(0, getsockopt(md_bus_fd(a), SOL_SOCKET, SO_RCVBUF, &v, &len));
+    TEST_ASSERT_EQUAL_INT(v, a->sock.rcvbuf);
+    TEST_ASSERT_TRUE(v <= 2 * MD_BUS_UDP_RCVBUF_BYTES);  // the kernel doubles what it grants, never more
+    md_bus_close(a);
+}
+
+/// Child: opens an endpoint, announces itself with 0x700, then reads `n`
+/// frames slowly (a short sleep after each) and checks their order. Exit 0
+/// if all arrived in order and the kernel dropped none.
+static int child_slow_reader(uint32_t n)
+{
+    md_bus_t bus;
+    if (md_bus_open(&bus, "udp", NULL, 0) != 0) {
+        return 10;
+    }
+    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
+    if (md_bus_send(&bus, &hello) != 0) {
+        return 11;
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        md_frame_t f;
+        if (md_bus_receive(&bus, &f, PEER_US) != 1) {
+            return 12;
+        }
+        const md_frame_t e = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
+        if (f.id != e.id || memcmp(f.data, e.data, 64) != 0) {
+            return 13;
+        }
+        const struct timespec pause = {0, 100000L};  // 0.1 ms per frame: slower than the sender
+        (void)nanosleep(&pause, NULL);
+    }
+    const int rc = (bus.stats.rx_overflow == 0u) ? 0 : 14;
+    md_bus_close(&bus);
+    return rc;
+}
+
+static void test_a_slow_reader_loses_nothing(void)
+{
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    // 8x what the reader's socket buffer holds: without flow control a
+    // reader this slow loses most of them.
+    const uint32_t n = 4000;
+    const pid_t pid = fork();
+    TEST_ASSERT_TRUE(pid >= 0);
+    if (pid == 0) {
+        _exit(child_slow_reader(n));
+    }
+    child_pid = pid;
+    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
+    expect_frame(a, &hello);
+    for (uint32_t i = 0; i < n; ++i) {
+        const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
+    }
+    int status = -1;
+    TEST_ASSERT_EQUAL_INT((int)pid, (int)waitpid(pid, &status, 0));
+    child_pid = -1;
+    char msg[128];
+    (void)snprintf(msg, sizeof msg, "%u frames to a slow reader: sender waited %llu times, timed out %llu times",
+                   (unsigned)n, (unsigned long long)a->stats.tx_flow_waits,
+                   (unsigned long long)a->stats.tx_flow_timeouts);
+    TEST_MESSAGE(msg);
+    TEST_ASSERT_TRUE(WIFEXITED(status));
+    TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
+    TEST_ASSERT_EQUAL_UINT64(0, a->stats.tx_flow_timeouts);
+    TEST_ASSERT_EQUAL_UINT64(0, a->stats.rx_overflow);
+    md_bus_close(a);
+}
+
+/// Child: announces itself with 0x700, reads `n` frames, then answers 0x701.
+static int child_reader_then_answer(uint32_t n)
+{
+    md_bus_t bus;
+    if (md_bus_open(&bus, "udp", NULL, 0) != 0) {
+        return 10;
+    }
+    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
+    if (md_bus_send(&bus, &hello) != 0) {
+        return 11;
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        md_frame_t f;
+        if (md_bus_receive(&bus, &f, PEER_US) != 1) {
+            return 12;
+        }
+    }
+    const md_frame_t answer = make_frame(0x701, 8, 0, 7);
+    const int rc = (md_bus_send(&bus, &answer) == 0 && bus.stats.rx_overflow == 0u) ? 0 : 13;
+    md_bus_close(&bus);
+    return rc;
+}
+
+static void test_own_echoes_do_not_crowd_out_other_senders(void)
+{
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    // a sends far more than its socket holds and reads nothing meanwhile:
+    // its own looped-back datagrams must not fill its queue, or the reader's
+    // answer would be dropped.
+    const uint32_t n = 5000;
+    const pid_t pid = fork();
+    TEST_ASSERT_TRUE(pid >= 0);
+    if (pid == 0) {
+        _exit(child_reader_then_answer(n));
+    }
+    child_pid = pid;
+    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
+    expect_frame(a, &hello);
+    for (uint32_t i = 0; i < n; ++i) {
+        const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
+    }
+    const md_frame_t answer = make_frame(0x701, 8, 0, 7);
+    expect_frame(a, &answer);
+    int status = -1;
+    TEST_ASSERT_EQUAL_INT((int)pid, (int)waitpid(pid, &status, 0));
+    child_pid = -1;
+    TEST_ASSERT_TRUE(WIFEXITED(status));
+    TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
+    TEST_ASSERT_EQUAL_UINT64(0, a->stats.rx_overflow);
+    expect_nothing(a);
+    md_bus_close(a);
+}
+
+/// Child: announces itself with 0x700, waits for 0x702, then streams `n`
+/// frames without reading in between (as the simulator streams an interval),
+/// then reads the parent's `m` frames. Exit 0 if they all arrived, none lost.
+static int child_streamer(uint32_t n, uint32_t m)
+{
+    md_bus_t bus;
+    if (md_bus_open(&bus, "udp", NULL, 0) != 0) {
+        return 10;
+    }
+    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
+    if (md_bus_send(&bus, &hello) != 0) {
+        return 11;
+    }
+    md_frame_t f;
+    if (md_bus_receive(&bus, &f, PEER_US) != 1 || f.id != 0x702u) {
+        return 12;
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        const md_frame_t e = make_frame(i & 0x3FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
+        if (md_bus_send(&bus, &e) != 0) {
+            return 13;
+        }
+    }
+    for (uint32_t i = 0; i < m; ++i) {
+        if (md_bus_receive(&bus, &f, PEER_US) != 1 || f.id != (0x400u | (i & 0x3FFu))) {
+            return 14;
+        }
+    }
+    const int rc = (bus.stats.rx_overflow == 0u) ? 0 : 15;
+    md_bus_close(&bus);
+    return rc;
+}
+
+static void test_two_senders_that_do_not_read_while_sending_lose_nothing(void)
+{
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    // The child streams 3000 frames at a; a meanwhile sends 200 of its own
+    // before it reads anything (the controller's telemetry while the
+    // simulator streams). a's echoes must not fill its queue, and the
+    // child's stream must wait for a instead of being dropped there. (Both
+    // sending much more than a buffer's worth at each other without reading
+    // is beyond the flow control: docs/bus.md, "Flow control".)
+    const uint32_t n = 3000, m = 200;
+    const pid_t pid = fork();
+    TEST_ASSERT_TRUE(pid >= 0);
+    if (pid == 0) {
+        _exit(child_streamer(n, m));
+    }
+    child_pid = pid;
+    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
+    expect_frame(a, &hello);
+    const md_frame_t go = make_frame(0x702, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &go));
+    for (uint32_t i = 0; i < m; ++i) {
+        const md_frame_t f = make_frame(0x400u | (i & 0x3FFu), 8, 0, (uint8_t)i);
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        const md_frame_t e = make_frame(i & 0x3FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
+        expect_frame(a, &e);
+    }
+    int status = -1;
+    TEST_ASSERT_EQUAL_INT((int)pid, (int)waitpid(pid, &status, 0));
+    child_pid = -1;
+    TEST_ASSERT_TRUE(WIFEXITED(status));
+    TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
+    TEST_ASSERT_EQUAL_UINT64(0, a->stats.rx_overflow);
+    TEST_ASSERT_EQUAL_UINT64(0, a->stats.tx_flow_timeouts);
+    md_bus_close(a);
+}
+
+static void test_a_reader_that_never_reads_is_marked_stalled_and_counted(void)
+{
+    md_bus_t *const a = &bus_ep[0];
+    open_udp(a, "udp");
+    md_bus_t *const b = &bus_ep[1];
+    open_udp(b, "udp");
+    // b never reads: a waits for it once (here 50 ms instead of the default),
+    // then marks it stalled and sends on; b's losses are counted at b.
+    TEST_ASSERT_EQUAL_INT(0, md_bus_udp_set_flow_wait(a, 50000));
+    const uint32_t n = 2000;
+    for (uint32_t i = 0; i < n; ++i) {
+        const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
+    }
+    TEST_ASSERT_EQUAL_UINT64(1, a->stats.tx_flow_waits);
+    TEST_ASSERT_EQUAL_UINT64(1, a->stats.tx_flow_timeouts);
+    md_frame_t r;
+    for (uint32_t i = 0; i < n && md_bus_receive(b, &r, ABSENT_US) == 1; ++i) {
+    }
+    TEST_ASSERT_GREATER_THAN_UINT(0, (unsigned)b->stats.rx_overflow);
+    TEST_ASSERT_EQUAL_UINT64(n, b->stats.rx_frames + b->stats.rx_overflow);
     md_bus_close(a);
     md_bus_close(b);
 }
@@ -382,6 +618,11 @@ int main(void)
     RUN_TEST(test_invalid_frame_and_arguments_are_refused);
     RUN_TEST(test_receive_waits_for_its_timeout_and_no_longer);
     RUN_TEST(test_kernel_drops_are_counted_as_overflow);
+    RUN_TEST(test_endpoints_ask_for_the_stock_receive_buffer_only);
+    RUN_TEST(test_a_slow_reader_loses_nothing);
+    RUN_TEST(test_own_echoes_do_not_crowd_out_other_senders);
+    RUN_TEST(test_two_senders_that_do_not_read_while_sending_lose_nothing);
+    RUN_TEST(test_a_reader_that_never_reads_is_marked_stalled_and_counted);
     RUN_TEST(test_two_processes_talk_over_the_bus);
     RUN_TEST(test_round_trip_time_is_reported);
     return UNITY_END();

@@ -24,9 +24,13 @@ extern char **environ;
 #define PROCS_SLICE_US 50000
 #define PROCS_BOOT_WAIT_US 10000000u
 #define PROCS_TERM_WAIT_MS 15000   /* a slow VM may be in the middle of a 10 s batch */
-/// The recorder's socket buffer: a 10 s interval is ~11 000 frames in a
-/// burst, and the recorder must lose none of them even on a loaded machine.
+/// SocketCAN (no flow control): the recorder's socket buffer. A 10 s interval
+/// is ~11 000 frames in a burst, each charged ~1 kB of buffer, and the
+/// recorder must lose none of them even on a loaded machine.
 #define PROCS_RCVBUF_BYTES (64 << 20)
+/// SocketCAN: the buffer below which a reader that falls behind for the
+/// length of one interval's burst loses frames (11 000 frames x ~1 kB).
+#define PROCS_BURST_BYTES (12 << 20)
 #ifndef SO_RCVBUFFORCE
 #define SO_RCVBUFFORCE 33   /* Linux; glibc hides it outside _GNU_SOURCE */
 #endif
@@ -66,20 +70,26 @@ static pid_t spawn_logged(char *const argv[], const char *log_path)
     return pid;
 }
 
-/* SIGTERM, a bounded wait, then SIGKILL. Returns the exit status or -1. */
-static int stop_child(pid_t pid)
+static int record_slice(session_track_t *t, int64_t slice_us);
+
+/* SIGTERM, a bounded wait, then SIGKILL. Returns the exit status or -1.
+ * The recorder keeps reading meanwhile: the simulator may be in the middle
+ * of a batch, and on UDP its flow control waits for every reader, the
+ * recorder included (a recorder that stopped reading for 10 s would be
+ * marked stalled and lose the rest of the batch). */
+static int stop_child(pid_t pid, session_track_t *t)
 {
     int status = 0;
     if (pid <= 0) {
         return -1;
     }
     (void)kill(pid, SIGTERM);
-    for (int i = 0; i < PROCS_TERM_WAIT_MS / 10; i++) {
+    const uint64_t t0 = mono_us();
+    while (mono_us() - t0 < (uint64_t)PROCS_TERM_WAIT_MS * 1000u) {
         if (waitpid(pid, &status, WNOHANG) == pid) {
             return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
         }
-        const struct timespec ten_ms = {0, 10000000L};
-        (void)nanosleep(&ten_ms, NULL);
+        (void)record_slice(t, 10000);
     }
     (void)kill(pid, SIGKILL);
     (void)waitpid(pid, &status, 0);
@@ -109,6 +119,46 @@ static int record_slice(session_track_t *t, int64_t slice_us)
     return (rc < 0 && rc != -EINTR) ? rc : 0;
 }
 
+static long read_rmem_max(void)
+{
+    long v = -1;
+    FILE *f = fopen("/proc/sys/net/core/rmem_max", "r");
+    if (f != NULL) {
+        if (fscanf(f, "%ld", &v) != 1) {
+            v = -1;
+        }
+        (void)fclose(f);
+    }
+    return v;
+}
+
+/* Warns when the limits of this machine can make the session lose frames:
+ * a UDP bus without flow control, or SocketCAN (no flow control at all) with
+ * socket buffers smaller than one interval's burst. Lost frames are still
+ * counted, and a session that lost any ends with status 1. */
+static void warn_buffer_limits(int fd)
+{
+    int granted = 0;
+    socklen_t glen = sizeof granted;
+    if (fd < 0 || getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &granted, &glen) != 0) {
+        granted = 0;
+    }
+    const long rmem_max = read_rmem_max();
+    if (g_rec.kind == MD_BUS_UDP && g_rec.sock.flow == 0u) {
+        fprintf(stderr,
+                "microdrive-session: WARNING: the UDP bus has no flow control here (the bus line says why): a "
+                "process that falls behind loses frames once its %d-byte socket buffer is full "
+                "(net.core.rmem_max %ld); see docs/bus.md\n",
+                granted, rmem_max);
+    } else if (g_rec.kind == MD_BUS_SOCKETCAN && granted < PROCS_BURST_BYTES) {
+        fprintf(stderr,
+                "microdrive-session: WARNING: SocketCAN has no flow control and the socket buffers are small "
+                "(recorder %d bytes, net.core.rmem_max %ld; one interval's burst needs ~%d): a process that falls "
+                "behind loses frames; run as root or raise net.core.rmem_max (docs/bus.md)\n",
+                granted, rmem_max, PROCS_BURST_BYTES);
+    }
+}
+
 static int open_recorder(const session_opts_t *o, session_track_t *t, char *bus_used, size_t len)
 {
     char why[200] = "";
@@ -128,12 +178,16 @@ static int open_recorder(const session_opts_t *o, session_track_t *t, char *bus_
         md_bus_close(&g_rec);
         return -1;
     }
-    /* beyond rmem_max when allowed (root, or root of the test's namespace) */
+    /* SocketCAN has no flow control: beyond rmem_max when allowed (root).
+     * The UDP bus keeps its stock buffer: its flow control makes the
+     * senders wait for the recorder instead. */
     const int fd = md_bus_fd(&g_rec), size = PROCS_RCVBUF_BYTES;
-    if (fd >= 0 && setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &size, sizeof size) != 0) {
+    if (g_rec.kind == MD_BUS_SOCKETCAN && fd >= 0 &&
+        setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &size, sizeof size) != 0) {
         (void)setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &size, sizeof size);
     }
     fprintf(stderr, "microdrive-session: bus %s (%s)\n", bus_used, why);
+    warn_buffer_limits(fd);
     return 0;
 }
 
@@ -209,6 +263,59 @@ static session_end_t procs_start(const session_opts_t *o, session_track_t *t, co
     return (*sim < 0) ? SESSION_END_ERROR : SESSION_END_GOAL;
 }
 
+/* The last "bus stats:" line of a process's log (md_bus_stats_format).
+ * Returns true with the counts if there is one. */
+static bool log_bus_stats(const char *path, unsigned long long *overflow, unsigned long long *malformed,
+                          unsigned long long *waits, unsigned long long *timeouts)
+{
+    FILE *f = fopen(path, "r");
+    if (f == NULL) {
+        return false;
+    }
+    char line[512];
+    bool found = false;
+    while (fgets(line, sizeof line, f) != NULL) {
+        const char *p = strstr(line, "bus stats: ");
+        unsigned long long rx = 0, ov = 0, mal = 0, tx = 0, txe = 0, w = 0, to = 0;
+        if (p != NULL && sscanf(p,
+                                "bus stats: rx %llu, rx overflow %llu, rx malformed %llu, tx %llu, tx errors %llu, "
+                                "flow waits %llu, flow timeouts %llu",
+                                &rx, &ov, &mal, &tx, &txe, &w, &to) == 7) {
+            *overflow = ov;
+            *malformed = mal;
+            *waits = w;
+            *timeouts = to;
+            found = true;
+        }
+    }
+    (void)fclose(f);
+    return found;
+}
+
+/* Frames lost by the simulator and the controller (their bus counters, from
+ * their logs) and by the recorder: printed; any loss fails the session. */
+static bool report_losses(const session_opts_t *o)
+{
+    static char path[4096];
+    static const char *const names[2] = {"microdrive-sim", "microdrive-fw"};
+    static const char *const logs[2] = {"sim.log", "fw.log"};
+    bool lost = g_rec.stats.rx_overflow > 0u || g_rec.stats.rx_malformed > 0u;
+    fprintf(stderr, "microdrive-session: frames lost: recorder %" PRIu64 " (malformed %" PRIu64 ")",
+            g_rec.stats.rx_overflow, g_rec.stats.rx_malformed);
+    for (unsigned i = 0; i < 2u; i++) {
+        unsigned long long ov = 0, mal = 0, w = 0, to = 0;
+        (void)snprintf(path, sizeof path, "%s/%s", o->out, logs[i]);
+        if (log_bus_stats(path, &ov, &mal, &w, &to)) {
+            fprintf(stderr, ", %s %llu (malformed %llu; flow waits %llu, timeouts %llu)", names[i], ov, mal, w, to);
+            lost = lost || ov > 0u || mal > 0u;
+        } else {
+            fprintf(stderr, ", %s not reported (no bus stats in %s)", names[i], logs[i]);
+        }
+    }
+    fprintf(stderr, "\n");
+    return lost;
+}
+
 session_end_t session_run_procs(const session_opts_t *o, session_track_t *t, char *bus_used, size_t bus_used_len)
 {
     pid_t fw = -1, sim = -1;
@@ -219,12 +326,11 @@ session_end_t session_run_procs(const session_opts_t *o, session_track_t *t, cha
     if (end == SESSION_END_GOAL) {
         end = procs_loop(o, t, fw, sim);
     }
-    (void)stop_child(fw);
-    (void)stop_child(sim);
+    (void)stop_child(fw, t);
+    (void)stop_child(sim, t);
     (void)record_slice(t, 200000);   /* the last frames in flight */
-    if (g_rec.stats.rx_overflow > 0u || g_rec.stats.rx_malformed > 0u) {
-        fprintf(stderr, "microdrive-session: the recorder lost %" PRIu64 " frames (%" PRIu64 " malformed)\n",
-                g_rec.stats.rx_overflow, g_rec.stats.rx_malformed);
+    if (report_losses(o)) {
+        fprintf(stderr, "microdrive-session: frames were lost on the bus: the report could be wrong\n");
         end = SESSION_END_ERROR;
     }
     md_bus_close(&g_rec);

@@ -311,6 +311,9 @@ int main(int argc, char **argv)
     install_signals();
     const int loop_rc = run(ctl, &port_ctx);
     print_summary(node, &port_ctx);
+    char stats[200];
+    (void)md_bus_stats_format(&port_ctx.bus.stats, stats, sizeof stats);
+    (void)fprintf(stderr, "microdrive-fw: %s\n", stats);
     md_bus_close(&port_ctx.bus);
     return loop_rc == 0 ? 0 : 1;
 }
