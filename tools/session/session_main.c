@@ -220,8 +220,10 @@ static int run_scorer(const session_opts_t *o, const char *bus_label, const char
 static bool bus_is_inproc(const char *bus) { return strcmp(bus, "inproc") == 0 || strncmp(bus, "inproc:", 7) == 0; }
 
 /* Runs the session of the parsed options; returns the end and the bus label. */
-static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label, size_t len)
+static session_end_t run(session_opts_t *o, const scenario_t *sc, char *bus_label, size_t len)
 {
+    static session_rec_t rec;
+    const uint32_t electrodes = sc->n_electrodes;
     char path[PATH_MAX];
     (void)snprintf(path, sizeof path, "%s/candump.log", o->out);
     FILE *log = fopen(path, "w");
@@ -232,7 +234,16 @@ static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label
     session_track_t track;
     const session_goal_t goal = {o->cycles, (o->cycles > 0u) ? 0u : (uint64_t)(o->duration_s * 1e6)};
     session_track_init(&track, log, "inproc", electrodes, goal, o->quiet);
-    track.log_samples = !o->no_sample_log;
+    track.log_samples = o->candump_samples;
+    if (!o->no_recording) {
+        char msg[SESSION_REC_PATH_MAX + 64u];
+        if (session_rec_open(&rec, o->out, electrodes, sc->name, o->seed, msg, sizeof msg) != 0) {
+            fprintf(stderr, "microdrive-session: %s\n", msg);
+            (void)fclose(log);
+            return SESSION_END_ERROR;
+        }
+        track.rec = &rec;
+    }
     session_end_t end;
     if (bus_is_inproc(o->bus)) {
         (void)snprintf(bus_label, len, "inproc");
@@ -241,6 +252,7 @@ static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label
         if (truth == NULL) {
             fprintf(stderr, "microdrive-session: cannot write %s: %s\n", path, strerror(errno));
             (void)fclose(log);
+            session_rec_abandon(&rec);
             return SESSION_END_ERROR;
         }
         fprintf(stderr, "microdrive-session: bus inproc (simulator and controller in this process, virtual clock)\n");
@@ -254,6 +266,9 @@ static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label
     }
     (void)fclose(log);
     session_track_summary(&track, stderr);
+    if (session_rec_close(track.rec, stderr) != 0 && end != SESSION_END_SIGNAL) {
+        end = SESSION_END_ERROR;
+    }
     return end;
 }
 
@@ -290,7 +305,7 @@ int main(int argc, char *argv[])
     }
     install_signals();
     char bus_label[64];
-    const session_end_t end = run(&o, sc.n_electrodes, bus_label, sizeof bus_label);
+    const session_end_t end = run(&o, &sc, bus_label, sizeof bus_label);
     fprintf(stderr, "microdrive-session: ended: %s\n", session_end_name(end));
     if (end == SESSION_END_ERROR || end == SESSION_END_SIGNAL) {
         return 1;
