@@ -82,8 +82,12 @@ static void self_dir(char *out, size_t len)
     (void)snprintf(out, len, "%s", dirname(exe));
 }
 
+/* The interpreter for score.py and the plots: --python, $MD_PYTHON, the
+ * project venv this build was configured with, else a .venv in a folder
+ * above this executable (a checkout that moved). NULL when there is none. */
 static const char *pick_python(const session_opts_t *o)
 {
+    static char found[PATH_MAX + 32];
     if (o->python != NULL) {
         return o->python;
     }
@@ -91,7 +95,35 @@ static const char *pick_python(const session_opts_t *o)
     if (env != NULL && env[0] != '\0') {
         return env;
     }
-    return (access(MD_SESSION_PYTHON, X_OK) == 0) ? MD_SESSION_PYTHON : "python3";
+    if (access(MD_SESSION_PYTHON, X_OK) == 0) {
+        return MD_SESSION_PYTHON;
+    }
+    char dir[PATH_MAX];
+    self_dir(dir, sizeof dir);
+    for (int up = 0; up < 8; up++) {   /* build/<preset>/bin is three below the checkout */
+        (void)snprintf(found, sizeof found, "%s/.venv/bin/python", dir);
+        if (access(found, X_OK) == 0) {
+            return found;
+        }
+        char *slash = strrchr(dir, '/');
+        if (slash == NULL || slash == dir) {
+            break;
+        }
+        *slash = '\0';
+    }
+    return NULL;
+}
+
+/* What to run when there is no interpreter for `what`. */
+static void no_python(const char *what)
+{
+    char dir[PATH_MAX];
+    self_dir(dir, sizeof dir);
+    fprintf(stderr,
+            "microdrive-session: no Python for %s: the project venv %s is missing (and no .venv above %s).\n"
+            "  Make it: scripts/setup-venv.sh in the checkout (or configure the build: cmake --preset release);\n"
+            "  or pass --python PY (an interpreter with requirements.txt installed); --no-score / --no-lcm skip it.\n",
+            what, MD_SESSION_PYTHON, dir);
 }
 
 /* Runs argv (argv[0] through PATH); returns its exit status, -1 if it died
@@ -152,7 +184,12 @@ static int run_plots(const session_opts_t *o)
         *dot = '\0';
     }
     (void)snprintf(label, sizeof label, "%s seed %" PRIu64, base, o->seed);
-    (void)snprintf(py, sizeof py, "%s", pick_python(o));
+    const char *python = pick_python(o);
+    if (python == NULL) {
+        no_python("the plots (tools/plots/plot_session.py)");
+        return -1;
+    }
+    (void)snprintf(py, sizeof py, "%s", python);
     env_or(plotter, sizeof plotter, "MD_SESSION_PLOTTER", MD_SESSION_PLOTTER);
     env_or(types, sizeof types, "MD_LCM_TYPES", MD_SESSION_LCM_TYPES);
     (void)snprintf(log, sizeof log, "%s/session.lcmlog", o->out);
@@ -198,7 +235,12 @@ static int run_scorer(const session_opts_t *o, const char *bus_label, const char
     const char *env_scorer = getenv("MD_SESSION_SCORER");
     (void)snprintf(scorer, sizeof scorer, "%s",
                    (env_scorer != NULL && env_scorer[0] != '\0') ? env_scorer : MD_SESSION_SCORER);
-    (void)snprintf(py, sizeof py, "%s", pick_python(o));
+    const char *python = pick_python(o);
+    if (python == NULL) {
+        no_python("the report (tools/session/score.py)");
+        return -1;
+    }
+    (void)snprintf(py, sizeof py, "%s", python);
     (void)snprintf(scen, sizeof scen, "%s", o->scenario);
     (void)snprintf(log, sizeof log, "%s/candump.log", o->out);
     (void)snprintf(truth, sizeof truth, "%s/truth.jsonl", o->out);
