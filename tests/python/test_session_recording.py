@@ -106,6 +106,7 @@ def test_replay_opens_it_and_sees_what_the_controller_saw(session, frames, tmp_p
     ivs = json.load(open(session / "recording.json"))["intervals"]
     assert [r["start_sample"] for r in rows] == [iv["start_sample"] for iv in ivs]
     assert [r["depth_um"] for r in rows] == pytest.approx([iv["depth_um"] for iv in ivs])
+    assert [r["hall_code"] for r in rows] == [iv["hall_code"] for iv in ivs]
     # the same firmware chain on the same samples: the spikes the controller reported per cycle
     spikes = [m["NumSpikes"] for name, m, _ in frames if name == "TLM_STATUS"]
     assert [r["n_spikes"] for r in rows] == spikes
