@@ -51,14 +51,15 @@ md_deps_install() {
              "Debian packages yourself, then run this again: ${all[*]}" >&2
         return 1
     fi
+    # (no process substitution: the vcan VM that runs run-session.sh has no /dev/fd)
     local missing
-    mapfile -t missing < <(md_deps_missing "$@")
+    read -r -a missing <<<"$(md_deps_missing "$@" | tr '\n' ' ')"
     [ "${#missing[@]}" -eq 0 ] && return 0
     echo "$who: installing the missing Debian packages ${missing[*]}" >&2
     for g in "$@"; do
         local why="MD_DEPS_WHY_${g//-/_}" need
-        mapfile -t need < <(md_deps_missing "$g")
-        [ "${#need[@]}" -gt 0 ] && echo "$who:   ${need[*]}: to ${!why}" >&2
+        need=$(md_deps_missing "$g" | tr '\n' ' ')
+        [ -n "$need" ] && echo "$who:   ${need% }: to ${!why}" >&2
     done
     local sudo=()
     if [ "$(id -u)" -ne 0 ]; then
