@@ -33,6 +33,10 @@ python3 -m venv "$venv"
 for r in "${reqs[@]}"; do
     "$venv/bin/pip" install --quiet -r "$r"
 done
-"$venv/bin/pip" install --quiet -e "$root/python"
+# (setuptools warns about every editable install; its output is shown only on failure)
+"$venv/bin/pip" install --quiet -e "$root/python" >"$venv/.pip-python.log" 2>&1 || {
+    cat "$venv/.pip-python.log" >&2
+    exit 1
+}
 echo "$want" > "$stamp"
 echo "setup-venv: $venv ready" >&2
