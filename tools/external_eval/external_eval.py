@@ -339,8 +339,9 @@ def report_md(data):
       "(skipped seeds: static " + (", ".join(map(str, data["skipped"]["static"])) or "none") + "; drifting "
       + (", ".join(map(str, data["skipped"]["drifting"])) or "none") + "). Written as `recording.bin` (int16 "
       f"little-endian, gain {recordings.GAIN_UV} µV, the simulator's) + `recording.json` (`sampling_frequency`, "
-      "`num_channels` 1, `num_samples`, `dtype`, `gain_uV`, `offset_uV`; mhtc-replay reads the first four "
-      "it needs and `gain_uV`) + `ground_truth.csv` (`sample_index,unit_id`, every unit).")
+      "`num_channels` 1, `num_samples`, `dtype`, `gain_uV`, `offset_uV`, `clipped_samples`; mhtc-replay "
+      "reads the first four it needs and `gain_uV`; written by `microdrive.write_samples`, python/) + "
+      "`ground_truth.csv` (`sample_index,unit_id`, every unit).")
     a(f"- **Visible**: the unit's mean waveform on the channel (average of the trace over its ground-truth spike "
       f"times, up to {recordings.MAX_MEAN_SPIKES} spread over the session, −1..+2 ms; with drift the session "
       f"mean) reaches {recordings.VISIBLE_X:.0f}× the channel's noise level, largest |value|. **Noise level** = "
