@@ -98,7 +98,12 @@ static void on_data(session_rec_t *r, session_rec_electrode_t *el, const md_fram
     session_rec_interval_t *iv = &el->iv[el->open];
     const uint32_t count = (f->data[1] <= MD_REC_SAMPLES_PER_FRAME) ? f->data[1] : MD_REC_SAMPLES_PER_FRAME;
     const uint16_t seq = (uint16_t)((uint16_t)f->data[2] | (uint16_t)((uint16_t)f->data[3] << 8));
-    if (seq != el->next_seq || 4u + 2u * count > f->len) {
+    const size_t bytes = 2u * (size_t)count;
+    if (4u + bytes > f->len) {
+        iv->gap = true; /* a frame shorter than its SampleCount: nothing of it is kept */
+        return;
+    }
+    if (seq != el->next_seq) {
         iv->gap = true;
     }
     if (iv->num_samples == 0u && !isnan(iv->start_s)) {
@@ -107,8 +112,7 @@ static void on_data(session_rec_t *r, session_rec_electrode_t *el, const md_fram
     el->next_seq = (uint16_t)(seq + 1u);
     /* DBC: Sample00.. little-endian int16 at bit 32 + 16 i; the binary is
      * little-endian int16 too, so the bytes go out as they came */
-    const size_t bytes = 2u * (size_t)count;
-    if (4u + bytes <= f->len && fwrite(&f->data[4], 1u, bytes, el->bin) != bytes) {
+    if (fwrite(&f->data[4], 1u, bytes, el->bin) != bytes) {
         r->write_error = errno != 0 ? errno : EIO;
     }
     iv->num_samples += count;
@@ -214,7 +218,9 @@ static void rec_trim(session_rec_electrode_t *el)
     el->written = end;
 }
 
-static int rec_write_sidecar(const session_rec_t *r, uint32_t e, const char *json, const char *bin_name)
+/* Writes electrode e's sidecar; *written: the intervals it lists. 0 ok, -1 (errno set). */
+static int rec_write_sidecar(const session_rec_t *r, uint32_t e, const char *json, const char *bin_name,
+                             uint32_t *written)
 {
     const session_rec_electrode_t *el = &r->el[e];
     FILE *out = fopen(json, "w");
@@ -248,6 +254,7 @@ static int rec_write_sidecar(const session_rec_t *r, uint32_t e, const char *jso
         k++;
     }
     (void)fprintf(out, "\n  ]\n}\n");
+    *written = k;
     const int bad = ferror(out);
     return (fclose(out) != 0 || bad != 0) ? -1 : 0;
 }
@@ -282,13 +289,14 @@ int session_rec_close(session_rec_t *r, FILE *report)
             continue;
         }
         const char *slash = strrchr(bin, '/');
-        if (rec_write_sidecar(r, e, json, slash != NULL ? slash + 1 : bin) != 0) {
+        uint32_t listed = 0u;
+        if (rec_write_sidecar(r, e, json, slash != NULL ? slash + 1 : bin, &listed) != 0) {
             (void)fprintf(report, "microdrive-session: cannot write %s: %s\n", json, strerror(errno));
             rc = -1;
             continue;
         }
         (void)fprintf(report, "microdrive-session: recording %s (%" PRIu32 " intervals, %" PRIu64 " samples)%s\n",
-                      json, el->n, el->written, el->dropped > 0u ? "; intervals past the reader's limit not saved" : "");
+                      json, listed, el->written, el->dropped > 0u ? "; intervals past the reader's limit not saved" : "");
     }
     return rc;
 }
