@@ -6,15 +6,20 @@
 #   scripts/run-session.sh [--scenario FILE] [--seed N] [--seconds S | --cycles N]
 #                          [--bus auto|udp|vcan0|IFACE|inproc] [--out DIR]
 #                          [--build-dir DIR] [--idle-s S] [--param NAME=VALUE]...
-#                          [--no-lcm] [--no-plots]
+#                          [--no-lcm] [--no-plots] [--no-recording] [--candump-samples]
 #
-# --seconds S is simulated time (default: the scenario's duration_s). Builds
-# the release preset first when --build-dir has no binaries. Leaves in DIR:
-# candump.log (every frame, candump -L format), truth.jsonl (ground truth),
+# --seconds S is simulated time (default: the scenario's duration_s). First
+# installs what is missing (Debian packages as root or through sudo, the
+# project venv: scripts/deps.sh), builds the release preset when --build-dir
+# has no binaries. Leaves in DIR: recording.bin + recording.json (the samples
+# the controller recorded, per interval its depth and Hall reading; replay
+# with mhtc-replay or microdrive.read_recording), candump.log (every frame
+# but the samples, candump -L format), truth.jsonl (ground truth),
 # report.json, session.lcmlog (LCM log: lcm-logplayer, docs/telemetry.md),
 # tracks_pc.png waveforms.png status.png hypotheses.png truth.png, and
 # sim.log/fw.log for a socket bus. --param sets a controller parameter before
-# the start (e.g. tracker=1); --no-lcm/--no-plots leave the log/plots out.
+# the start (e.g. tracker=1); --no-lcm/--no-plots/--no-recording leave the
+# log/plots/recording out; --candump-samples logs the samples in candump.log too.
 # Exit 0 when the session reached its goal, or ended idle with every node's
 # heartbeat seen, no node reported lost (EMCY 0x8130) and no frame rejected
 # (EMCY 0x8200); else 1 (also when the LCM log or the plots failed).
@@ -29,7 +34,7 @@ out=""
 idle=20
 build="$root/build/release"
 
-usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,25p' "$0" | sed 's/^# \{0,1\}//'; }
 extra=()
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -42,20 +47,25 @@ while [ $# -gt 0 ]; do
         --build-dir) build=$2; shift 2 ;;
         --idle-s) idle=$2; shift 2 ;;
         --param) extra+=(--param "$2"); shift 2 ;;
-        --no-lcm|--no-plots) extra+=("$1"); shift ;;
+        --no-lcm|--no-plots|--no-recording|--candump-samples) extra+=("$1"); shift ;;
         -h|--help) usage; exit 0 ;;
         *) echo "run-session: unknown option '$1' (see --help)" >&2; exit 2 ;;
     esac
 done
 [ -f "$scenario" ] || { echo "run-session: no scenario file '$scenario'" >&2; exit 2; }
 
+# What the build and the session need: Debian packages (installed when
+# missing, scripts/deps.sh), then the project venv (scoring and plots).
+. "$root/scripts/deps.sh"
+md_deps_install run-session build || exit 1
+md_venv_ready run-session || exit 1
+
 bin="$build/bin"
 if [ ! -x "$bin/microdrive-session" ] || [ ! -x "$bin/microdrive-fw" ] || [ ! -x "$bin/microdrive-sim" ]; then
     echo "run-session: building the release preset into $root/build/release" >&2
-    (cd "$root" && cmake --preset release >/dev/null && cmake --build --preset release)
+    (cd "$root" && cmake --preset release >/dev/null && cmake --build --preset release -j "$(nproc)")
     bin="$root/build/release/bin"
 fi
-[ -x "$root/.venv/bin/python" ] || "$root/scripts/setup-venv.sh"
 
 out=${out:-"$root/out/session-$(date +%Y%m%d-%H%M%S)"}
 args=(--scenario "$scenario" --bus "$bus" --out "$out" --idle-s "$idle" "${goal[@]}" "${extra[@]}")

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The project's whole test suite, as the README and CI run it:
-#   1. Python venv (cantools, test tools)
+#   0. the Debian packages the chosen stages need, installed when missing as
+#      root or through sudo (scripts/deps.sh)
+#   1. Python venv (requirements.txt, the python/ package), made when missing or stale
 #   2. host build (preset dev): unit, integration (private netns) and vcan (VM) tests
 #   3. sanitizers (preset dev-asan: ASan + UBSan): the unit tests again
 #   4. fuzzing (clang libFuzzer, ASan + UBSan): a short run of every target
@@ -28,8 +30,18 @@ done
 step() { printf '\n==== %s ====\n' "$*"; }
 jobs=$(nproc)
 
+step "dependencies (Debian packages: scripts/deps.sh)"
+. scripts/deps.sh
+groups=(build host-tests)
+[ "$skip_fuzz" -eq 0 ] && groups+=(fuzz)
+[ "$skip_target" -eq 0 ] && groups+=(target)
+[ "$skip_vcan" -eq 0 ] && groups+=(vcan)
+md_deps_install test.sh "${groups[@]}"
+echo "all Debian packages of ${groups[*]} present"
+
 step "python venv"
-scripts/setup-venv.sh
+md_venv_ready test.sh
+echo "venv ${MD_VENV:-$root/.venv} ready"
 
 step "host build (preset dev)"
 cmake --preset dev

@@ -23,7 +23,7 @@ DAMAGE_UM = 12.0  # docs/simulator.md, neuron_model.damage_um default
 def run(build_dir, scenario, seed, guard, out_root):
     out = os.path.join(out_root, f"guard{guard}-seed{seed}")
     cmd = [os.path.join(build_dir, "bin", "microdrive-session"), "--scenario", scenario, "--seed", str(seed),
-           "--bus", "inproc", "--out", out, "--quiet", "--no-lcm", "--no-plots", "--no-sample-log",
+           "--bus", "inproc", "--out", out, "--quiet", "--no-lcm", "--no-plots", "--no-recording",
            "--param", f"guard_enable={guard}"]
     p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     path = os.path.join(out, "report.json")

@@ -31,7 +31,7 @@ CYCLES = 3
 def session(a, out, *extra, env=None):
     shutil.rmtree(out, ignore_errors=True)
     cmd = [os.path.join(a.bin, "microdrive-session"), "--scenario", a.scenario, "--seed", "3", "--bus", "inproc",
-           "--cycles", str(CYCLES), "--out", out, "--quiet", "--no-sample-log", *extra]
+           "--cycles", str(CYCLES), "--out", out, "--quiet", "--no-recording", *extra]
     p = subprocess.run(cmd, capture_output=True, text=True, env=env)
     return p.returncode, p.stderr
 

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # microdrive-session in-process, twice with the same scenario + seed: exit 0
 # (goal of N cycles reached), progress lines, the frame log byte-identical
-# between the runs (virtual clock: time stamps included), truth.jsonl identical,
+# between the runs (virtual clock: time stamps included), truth.jsonl and the
+# recording (recording.bin/.json) identical, no REC_DATA in the frame log,
 # report.json with every interface field, and a third run with another seed
 # that differs.
 #   test_session_inproc.sh BIN_DIR SCENARIO OUT_DIR CYCLES
@@ -20,6 +21,10 @@ done
 cmp -s "$out/a/candump.log" "$out/b/candump.log" || fail "frame logs of the same seed differ"
 cmp -s "$out/a/truth.jsonl" "$out/b/truth.jsonl" || fail "ground truth of the same seed differs"
 cmp -s "$out/a/report.json" "$out/b/report.json" || fail "reports of the same seed differ"
+cmp -s "$out/a/recording.bin" "$out/b/recording.bin" || fail "recordings of the same seed differ"
+cmp -s "$out/a/recording.json" "$out/b/recording.json" || fail "recording sidecars of the same seed differ"
+[ "$(stat -c %s "$out/a/recording.bin")" -gt 0 ] || fail "empty recording.bin"
+grep -q ' 400##' "$out/a/candump.log" && fail "REC_DATA in candump.log without --candump-samples"
 cmp -s "$out/a/candump.log" "$out/c/candump.log" && fail "another seed gave the same frames"
 grep -q '"type":"interval"' "$out/a/truth.jsonl" || fail "no interval record in the truth"
 python3 - "$out/a/report.json" "$cycles" <<'PY' || fail "report.json lacks interface fields"

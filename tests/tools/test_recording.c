@@ -190,6 +190,32 @@ static void test_export_sidecar_with_interval_list(void)
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 301.0, g_rec.iv[1].depth_um);
 }
 
+/* microdrive-session's sidecar: one channel, depth and Hall code as numbers or
+ * null, fields the reader does not use (source, electrode, cycle, complete). */
+static void test_session_sidecar_with_hall_codes(void)
+{
+    write_zeros("recording.bin", 2u * 3000u);
+    write_json("{\"sampling_frequency\": 30000, \"num_channels\": 1, \"num_samples\": 3000, \"dtype\": \"int16\",\n"
+               " \"gain_uV\": 0.195, \"file\": \"recording.bin\", \"scenario\": \"single_neuron\", \"seed\": 1,\n"
+               " \"source\": \"microdrive-session\", \"electrode\": 0, \"intervals\": [\n"
+               "  {\"index\": 0, \"start_sample\": 0, \"num_samples\": 1000, \"start_s\": 0.0, \"interval_id\": 1,"
+               " \"cycle\": 0, \"depth_um\": 1000.194, \"hall_code\": 16656, \"complete\": true},\n"
+               "  {\"index\": 1, \"start_sample\": 1000, \"num_samples\": 2000, \"start_s\": 1.3, \"interval_id\": 2,"
+               " \"cycle\": null, \"depth_um\": null, \"hall_code\": null, \"complete\": false}]}\n");
+    TEST_ASSERT_EQUAL_INT(MD_OK, open_rec(0.0, 0u));
+    TEST_ASSERT_EQUAL_UINT(2u, g_rec.n_intervals);
+    TEST_ASSERT_EQUAL_UINT64(1000u, g_rec.iv[1].start_sample);
+    TEST_ASSERT_EQUAL_UINT64(2000u, g_rec.iv[1].num_samples);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 1000.194, g_rec.iv[0].depth_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 16656.0, g_rec.iv[0].hall_code);
+    TEST_ASSERT_TRUE(isnan(g_rec.iv[1].depth_um));
+    TEST_ASSERT_TRUE(isnan(g_rec.iv[1].hall_code));
+    /* a cut recording (no list) knows no Hall code either */
+    write_json("{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\"}\n");
+    TEST_ASSERT_EQUAL_INT(MD_OK, open_rec(0.05, 0u));
+    TEST_ASSERT_TRUE(isnan(g_rec.iv[0].hall_code));
+}
+
 static void test_file_field_relative_and_absolute(void)
 {
     const int16_t v[4] = {1, -2, 3, -4};
@@ -461,6 +487,10 @@ static void test_bad_intervals(void)
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json",
                       "field \"intervals[0].depth_um[1]\": not a finite number or null (a string)",
                       HEAD "\"intervals\": [{\"start_sample\": 0, \"num_samples\": 10, \"depth_um\": [1, \"2\"]}]}");
+    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"intervals[0].hall_code\": not a number (a string)",
+                      HEAD "\"intervals\": [{\"start_sample\": 0, \"num_samples\": 10, \"hall_code\": \"x\"}]}");
+    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"intervals[0].hall_code\": 1 entries for 2 channel(s)",
+                      HEAD "\"intervals\": [{\"start_sample\": 0, \"num_samples\": 10, \"hall_code\": [1]}]}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"intervals[0].depth_um\": not a number (an object)",
                       HEAD "\"intervals\": [{\"start_sample\": 0, \"num_samples\": 10, \"depth_um\": {}}]}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"intervals[0].num_samples\": given 2 times",
@@ -502,6 +532,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_int16_minimal_sidecar_is_cut_into_intervals);
     RUN_TEST(test_export_sidecar_with_interval_list);
+    RUN_TEST(test_session_sidecar_with_hall_codes);
     RUN_TEST(test_file_field_relative_and_absolute);
     RUN_TEST(test_float32_microvolts_rounding_clipping);
     RUN_TEST(test_float32_gain);

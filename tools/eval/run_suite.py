@@ -12,7 +12,7 @@ parameter in every run (cached apart). --safety writes the safety table instead 
 scenario and tracker the neurons damaged and the closest approach of the tip to any neuron, with the
 isolation figures next to them.
 
-Each run is `microdrive-session --bus inproc --param tracker=N --no-lcm --no-plots --no-sample-log --quiet`
+Each run is `microdrive-session --bus inproc --param tracker=N --no-lcm --no-plots --no-recording --quiet`
 (tracker 0 MHTC, 1 MAP-NN, 2 ML-NN, 3 GNN; docs/evaluation.md) and is cached per (scenario, tracker, seed)
 in CACHE/<scenario>/<tracker>/seed-<n>/ (report.json + run.json: command, exit, wall time, build id). A
 rerun reuses every cached run whose goal matches: after a code change say so explicitly, --force (rerun
@@ -111,7 +111,7 @@ def run_one(args, job, bid):
         if os.path.exists(os.path.join(d, name)):
             os.remove(os.path.join(d, name))
     cmd = [args.session, "--scenario", scen_path, "--seed", str(seed), "--bus", "inproc", "--out", d,
-           "--param", f"tracker={tracker}", "--no-lcm", "--no-plots", "--no-sample-log", "--quiet"]
+           "--param", f"tracker={tracker}", "--no-lcm", "--no-plots", "--no-recording", "--quiet"]
     for p in args.param:
         cmd += ["--param", p]
     if goal:

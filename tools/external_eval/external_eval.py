@@ -40,7 +40,8 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(ROOT, "tools", "eval"))
 
-import recordings  # noqa: E402
+import recordings  # noqa: E402  (also puts python/ on the path: microdrive)
+import microdrive  # noqa: E402
 import scoring  # noqa: E402
 import regression  # noqa: E402  (tools/eval/regression.py: the bounds mechanism)
 
@@ -76,11 +77,11 @@ def log(msg):
 # ---------------------------------------------------------------------------------------------- runs
 
 def replay_bin(args):
-    p = args.replay or os.path.join(args.build_dir, "bin", "mhtc-replay")
-    if not os.path.isfile(p) or not os.access(p, os.X_OK):
-        raise EvalError(f"{p}: no mhtc-replay executable (build it: cmake --preset release && cmake --build "
-                        f"--preset release -j2 --target mhtc-replay)")
-    return p
+    """--replay, else BUILD_DIR/bin/mhtc-replay (microdrive.find_replay: the same clear error)."""
+    try:
+        return microdrive.find_replay(args.replay or os.path.join(args.build_dir, "bin"))
+    except microdrive.MicrodriveError as e:
+        raise EvalError(str(e))
 
 
 def run_tool(cmd, what):
@@ -93,11 +94,11 @@ def run_tool(cmd, what):
 
 
 def run_replay(binary, recdir, tracker):
-    out = os.path.join(recdir, tracker)
-    shutil.rmtree(out, ignore_errors=True)
-    os.makedirs(out)
-    s = run_tool([binary, "--recording", os.path.join(recdir, "recording.json"), "--out", out, "--tracker",
-                  tracker, "--quiet"], f"mhtc-replay --tracker {tracker} on {recdir}")
+    try:
+        s = microdrive.run_replay(os.path.join(recdir, "recording.json"), os.path.join(recdir, tracker), tracker,
+                                  executable=binary)
+    except microdrive.MicrodriveError as e:
+        raise EvalError(f"mhtc-replay --tracker {tracker} on {recdir}: {e}")
     return tracker, s
 
 
@@ -338,8 +339,9 @@ def report_md(data):
       "(skipped seeds: static " + (", ".join(map(str, data["skipped"]["static"])) or "none") + "; drifting "
       + (", ".join(map(str, data["skipped"]["drifting"])) or "none") + "). Written as `recording.bin` (int16 "
       f"little-endian, gain {recordings.GAIN_UV} µV, the simulator's) + `recording.json` (`sampling_frequency`, "
-      "`num_channels` 1, `num_samples`, `dtype`, `gain_uV`, `offset_uV`; mhtc-replay reads the first four "
-      "it needs and `gain_uV`) + `ground_truth.csv` (`sample_index,unit_id`, every unit).")
+      "`num_channels` 1, `num_samples`, `dtype`, `gain_uV`, `offset_uV`, `clipped_samples`; mhtc-replay "
+      "reads the first four it needs and `gain_uV`; written by `microdrive.write_samples`, python/) + "
+      "`ground_truth.csv` (`sample_index,unit_id`, every unit).")
     a(f"- **Visible**: the unit's mean waveform on the channel (average of the trace over its ground-truth spike "
       f"times, up to {recordings.MAX_MEAN_SPIKES} spread over the session, −1..+2 ms; with drift the session "
       f"mean) reaches {recordings.VISIBLE_X:.0f}× the channel's noise level, largest |value|. **Noise level** = "

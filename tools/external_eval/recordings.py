@@ -8,10 +8,11 @@ unit's mean waveform on the channel is the average of the trace over its ground-
 MAX_MEAN_SPIKES of them, evenly spread over the session), window [-1 ms, +2 ms] around the spike time,
 and its amplitude is the largest |value| of that mean. With drift this is the session's mean waveform.
 
-Written into the recording directory:
+Written into the recording directory (the recording by microdrive.write_samples, python/microdrive):
   recording.bin      int16 little-endian, one channel (what mhtc-replay and the peer read)
   recording.json     sampling_frequency, num_channels (1), num_samples, dtype "int16", gain_uV,
-                     offset_uV, plus where it came from (generator, seed, channel, noise_uV)
+                     offset_uV, clipped_samples, plus where it came from (generator, seed, channel,
+                     noise_uV)
   ground_truth.csv   sample_index,unit_id of every ground-truth spike (all units)
   units.json         per unit: visible, amplitude_uV on the channel (and in noise levels), rate_hz,
                      spikes, nearest_visible_x_noise = L2 distance of its mean waveform on the channel
@@ -20,15 +21,20 @@ Written into the recording directory:
 import csv
 import json
 import os
+import sys
 
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
+                                "python"))
+import microdrive  # noqa: E402  (python/microdrive: the project's recording writer and replay runner)
 
 FS = 30000.0
 GAIN_UV = 0.195              # uV per int16 step, the simulator's ADC gain (host_sim/model/signal.c)
 VISIBLE_X = 6.0              # a unit is visible when its mean-waveform amplitude >= VISIBLE_X * noise
 MIN_VISIBLE, MAX_VISIBLE = 2, 5
 MAX_MEAN_SPIKES = 2000
-CHUNK_S = 10.0
+CHUNK_S = microdrive.recording.CHUNK_S
 
 # Eight contacts, two columns of four, 20 um pitch (generate_ground_truth_recording's own default probe
 # layout, made explicit so that both generators use the same probe).
@@ -85,17 +91,14 @@ def generate(params):
 
 
 def traces_uv(rec):
-    """The whole recording as float32 uV, samples x channels (read in CHUNK_S pieces)."""
+    """The whole recording as float32 uV, samples x channels (read in CHUNK_S pieces; a recording
+    without gains, like generate_drifting_recording's, is in uV already: microdrive.traces_uv)."""
     n = rec.get_num_samples()
     out = np.empty((n, rec.get_num_channels()), dtype=np.float32)
     step = int(CHUNK_S * rec.get_sampling_frequency())
-    # generate_drifting_recording sets no gains (None): its traces are already in uV
-    g, o = rec.get_channel_gains(), rec.get_channel_offsets()
-    gains = np.ones(rec.get_num_channels(), np.float32) if g is None else np.asarray(g, dtype=np.float32)
-    offs = np.zeros(rec.get_num_channels(), np.float32) if o is None else np.asarray(o, dtype=np.float32)
     for s0 in range(0, n, step):
         s1 = min(n, s0 + step)
-        out[s0:s1] = rec.get_traces(start_frame=s0, end_frame=s1).astype(np.float32) * gains + offs
+        out[s0:s1] = microdrive.traces_uv(rec, start_frame=s0, end_frame=s1)
     return out
 
 
@@ -142,11 +145,10 @@ def make(params, outdir):
     ch = choose_channel(amps, noise)
     if ch is None:
         return None
-    os.makedirs(outdir, exist_ok=True)
-    y = np.round(x[:, ch].astype(np.float64) / GAIN_UV)
-    clipped = int(np.sum((y > 32767) | (y < -32768)))
-    np.clip(y, -32768, 32767).astype("<i2").tofile(os.path.join(outdir, "recording.bin"))
-    duration = len(y) / fs
+    clipped = microdrive.write_samples(outdir, x[:, ch], fs, gain_uV=GAIN_UV, extra={
+        "source": dict(params, channel=int(ch), channel_noise_uV=round(float(noise[ch]), 3),
+                       noise_estimator="median(|x|)/0.6745 over the whole channel")})
+    duration = len(x) / fs
     units = []
     vis = [i for i in range(len(unit_ids)) if amps[i, ch] >= VISIBLE_X * noise[ch]]
     for i, u in enumerate(unit_ids):
@@ -159,13 +161,6 @@ def make(params, outdir):
                       "amplitude_x_noise": round(float(amps[i, ch] / noise[ch]), 2),
                       "nearest_visible_x_noise": round(min(near), 2) if near else None,
                       "spikes": int(len(trains[u])), "rate_hz": round(len(trains[u]) / duration, 3)})
-    side = {"sampling_frequency": fs, "num_channels": 1, "num_samples": int(len(y)), "dtype": "int16",
-            "gain_uV": GAIN_UV, "offset_uV": 0.0, "byte_order": "little",
-            "source": dict(params, channel=int(ch), channel_noise_uV=round(float(noise[ch]), 3),
-                           noise_estimator="median(|x|)/0.6745 over the whole channel",
-                           clipped_samples=clipped)}
-    with open(os.path.join(outdir, "recording.json"), "w") as f:
-        json.dump(side, f, indent=1)
     with open(os.path.join(outdir, "ground_truth.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["sample_index", "unit_id"])

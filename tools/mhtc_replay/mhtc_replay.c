@@ -301,6 +301,9 @@ static void rp_write_interval(FILE *jl, FILE *lab, uint32_t k, const rec_interva
     if (isfinite(iv->depth_um)) {
         (void)fprintf(jl, "\"depth_um\":%.4f,", iv->depth_um);
     }
+    if (isfinite(iv->hall_code)) {
+        (void)fprintf(jl, "\"hall_code\":%.0f,", iv->hall_code);
+    }
     (void)fprintf(jl, "\"n_spikes\":%zu,\"n_noise\":%zu,\"noise_rms_uv\":%.4f,\"step_ms\":%.3f,", g_spk.n, g_noise.n,
                   noise_rms, ms);
     rp_json_params(jl, &g_res);

@@ -16,14 +16,18 @@ import os
 import sys
 import textwrap
 
-import matplotlib
+try:
+    import matplotlib
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: E402
+    import numpy as np  # noqa: E402
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from lcm_session import SFSM_STATES, read_log  # noqa: E402
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from lcm_session import SFSM_STATES, read_log  # noqa: E402
+except ImportError as e:
+    sys.exit(f"plot_session.py: the Python module {e.name!r} is missing from {sys.executable}; the project venv "
+             f"has it: run scripts/setup-venv.sh in the checkout (microdrive-session uses its .venv)")
 
 MATCH_TOL_S = 0.0005  # a detection matches a true spike within 0.5 ms
 MAX_LEGEND = 10       # more tracks than this: IDs only at the trajectories' ends, no legend

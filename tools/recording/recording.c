@@ -391,7 +391,8 @@ static const char *rec_type_name(const cJSON *it)
 static const char *const REC_TOP_KEYS[] = {"sampling_frequency", "num_channels", "dtype", "gain_uV", "offset_uV",
                                            "byte_order", "layout", "num_samples", "file", "scenario", "seed",
                                            "intervals"};
-static const char *const REC_INTERVAL_KEYS[] = {"start_sample", "num_samples", "duration_s", "depth_um"};
+static const char *const REC_INTERVAL_KEYS[] = {"start_sample", "num_samples", "duration_s", "depth_um",
+                                                "hall_code"};
 
 /* A field this reader uses, given twice in one object: cJSON would silently take the first.
  * (Other keys are not read; a linear pass per field keeps a huge object cheap.) */
@@ -596,17 +597,18 @@ static md_status_t rec_size_binary(const rec_ctx_t *c, const cJSON *root, rec_re
     return MD_OK;
 }
 
-/* depth_um of one interval: a number, or one number per channel (null: unknown). */
-static md_status_t rec_depth(const rec_ctx_t *c, const cJSON *obj, const char *where, uint32_t n_channels,
-                             uint32_t channel, double *depth)
+/* A per-channel number of one interval (depth_um, hall_code): a number, or one
+ * number per channel; null or absent: unknown (NaN). */
+static md_status_t rec_per_channel(const rec_ctx_t *c, const cJSON *obj, const char *where, const char *key,
+                                   uint32_t n_channels, uint32_t channel, double *v)
 {
-    const cJSON *dep = cJSON_GetObjectItemCaseSensitive(obj, "depth_um");
-    *depth = nan("");
+    const cJSON *dep = cJSON_GetObjectItemCaseSensitive(obj, key);
+    *v = nan("");
     if ((dep == NULL) || cJSON_IsNull(dep)) {
         return MD_OK;
     }
     if (cJSON_IsArray(dep) && (cJSON_GetArraySize(dep) != (int)n_channels)) {
-        return rec_fail(c, MD_E_FRAME, "field \"%sdepth_um\": %d entries for %u channel(s)", where,
+        return rec_fail(c, MD_E_FRAME, "field \"%s%s\": %d entries for %u channel(s)", where, key,
                         cJSON_GetArraySize(dep), n_channels);
     }
     const cJSON *list = cJSON_IsArray(dep) ? dep : NULL;
@@ -615,13 +617,13 @@ static md_status_t rec_depth(const rec_ctx_t *c, const cJSON *obj, const char *w
     cJSON_ArrayForEach(it, list)
     {
         if (!cJSON_IsNull(it) && !(cJSON_IsNumber(it) && isfinite(it->valuedouble))) {
-            return rec_fail(c, MD_E_FRAME, "field \"%sdepth_um[%u]\": not a finite number or null (%s)", where, i,
+            return rec_fail(c, MD_E_FRAME, "field \"%s%s[%u]\": not a finite number or null (%s)", where, key, i,
                             rec_type_name(it));
         }
-        *depth = ((i == channel) && cJSON_IsNumber(it)) ? it->valuedouble : *depth;
+        *v = ((i == channel) && cJSON_IsNumber(it)) ? it->valuedouble : *v;
         ++i;
     }
-    if (!cJSON_IsArray(dep) && (rec_number(c, obj, where, "depth_um", 1, depth) != MD_OK)) {
+    if (!cJSON_IsArray(dep) && (rec_number(c, obj, where, key, 1, v) != MD_OK)) {
         return MD_E_FRAME;
     }
     return MD_OK;
@@ -666,7 +668,8 @@ static md_status_t rec_intervals(const rec_ctx_t *c, const cJSON *list, uint32_t
         if (!(iv->duration_s > 0.0)) {
             return rec_fail(c, MD_E_FRAME, "field \"%sduration_s\": must be > 0, got %g", where, iv->duration_s);
         }
-        if (rec_depth(c, it, where, rec->n_channels, channel, &iv->depth_um) != MD_OK) {
+        if ((rec_per_channel(c, it, where, "depth_um", rec->n_channels, channel, &iv->depth_um) != MD_OK) ||
+            (rec_per_channel(c, it, where, "hall_code", rec->n_channels, channel, &iv->hall_code) != MD_OK)) {
             return MD_E_FRAME;
         }
         rec->n_intervals++;
@@ -687,6 +690,7 @@ static void rec_cut_intervals(rec_recording_t *rec, double interval_s)
         iv->num_samples = (s + len <= rec->total_samples) ? len : rec->total_samples - s;
         iv->duration_s = (double)iv->num_samples / rec->fs_hz;
         iv->depth_um = nan("");
+        iv->hall_code = nan("");
     }
 }
 

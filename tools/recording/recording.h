@@ -19,7 +19,13 @@
 /// | `num_samples` | optional | samples per channel; must match the binary's size |
 /// | `file` | optional | the binary, relative to the sidecar's folder unless absolute |
 /// | `scenario`, `seed` | optional | simulator provenance (`"?"`, 0) |
-/// | `intervals` | optional | list of {`start_sample`, `num_samples` (required, integers), `duration_s` (> 0), `depth_um` (a number, or one per channel; null = unknown)} |
+/// | `intervals` | optional | list of {`start_sample`, `num_samples` (required, integers), `duration_s` (> 0), `depth_um` and `hall_code` (each a number, or one per channel; null = unknown)} |
+///
+/// Other fields are not read and may be anything: the simulator's export adds
+/// `index`, `start_s`, `depth_end_um`, `sensor_depth_um` to each interval;
+/// microdrive-session's recording adds `source`, `electrode` and, per
+/// interval, `index`, `start_s`, `interval_id`, `cycle`, `complete`
+/// (docs/session.md "The recording").
 ///
 /// Without an `intervals` list (or with an empty one) the signal is cut into
 /// consecutive intervals of rec_options_t.interval_s seconds; a last partial
@@ -69,6 +75,7 @@ typedef struct {
     uint64_t num_samples;
     double duration_s;  ///< the sidecar's, else num_samples / fs
     double depth_um;    ///< depth of rec_options_t.channel; NaN when the sidecar has none
+    double hall_code;   ///< Hall sensor reading (raw code) of that channel; NaN when the sidecar has none
 } rec_interval_t;
 
 /// What to read.

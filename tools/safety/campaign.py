@@ -7,7 +7,7 @@ usage: campaign.py [--seeds N] [--first-seed S] [--bus inproc] [--kinds a,b] [--
                    [--doc PATH | --no-doc] [--jobs J] [--check-args "..."]
 
 Every run: `microdrive-session --scenario scenarios/faults/<kind>.yaml --seed S --bus B
---cycles N --no-sample-log --no-score --no-lcm --no-plots --quiet`, then
+--cycles N --no-recording --no-score --no-lcm --no-plots --quiet`, then
 `check_invariants.py candump.log --truth truth.jsonl` (the true tip must stay in the window
 too). The fault counters the session prints (bus faults injected per kind, frames and
 heartbeats a silent node did not send, controller restarts; model faults by their effect)
@@ -65,7 +65,7 @@ def injected(stderr):
 def run_session(a, scen, seed, out):
     os.makedirs(out, exist_ok=True)
     cmd = [a.session, "--scenario", scen, "--seed", str(seed), "--bus", a.bus, "--out", out,
-           "--cycles", str(a.cycles), "--quiet", "--no-score", "--no-sample-log", "--no-lcm", "--no-plots"]
+           "--cycles", str(a.cycles), "--quiet", "--no-score", "--no-recording", "--no-lcm", "--no-plots"]
     errf = open(os.path.join(out, "session.err"), "w+")
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=errf, start_new_session=True)
     t0, log = time.time(), os.path.join(out, "candump.log")

@@ -40,7 +40,7 @@ def run_session(bin_dir, scenario, seed, out_dir, params):
     if os.path.exists(os.path.join(out_dir, "candump.log")) and os.path.exists(os.path.join(out_dir, "truth.jsonl")):
         return out_dir
     cmd = [os.path.join(bin_dir, "microdrive-session"), "--scenario", scenario, "--seed", str(seed),
-           "--bus", "inproc", "--out", out_dir, "--no-lcm", "--no-plots", "--no-sample-log", "--quiet",
+           "--bus", "inproc", "--out", out_dir, "--no-lcm", "--no-plots", "--no-recording", "--quiet",
            "--no-score", "--param", "guard_enable=0"]
     for p in params:
         cmd += ["--param", p]

@@ -29,7 +29,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 def run_one(args, seed):
     out = os.path.join(args.out, f"seed-{seed}")
     cmd = [os.path.join(args.build_dir, "bin", "microdrive-session"), "--scenario", args.scenario, "--seed",
-           str(seed), "--bus", args.bus, "--out", out, "--quiet", "--no-sample-log", "--no-lcm"]
+           str(seed), "--bus", args.bus, "--out", out, "--quiet", "--no-recording", "--no-lcm"]
     if args.cycles:
         cmd += ["--cycles", str(args.cycles)]
     elif args.duration_s:

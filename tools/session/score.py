@@ -412,7 +412,11 @@ def main(argv=None):
     ap.add_argument("--snr-in-range", type=float, default=3.0)
     ap.add_argument("--dbc", default=DBC)
     ARGS = args = ap.parse_args(argv)
-    import cantools
+    try:
+        import cantools
+    except ImportError as e:
+        sys.exit(f"score.py: the Python module {e.name!r} is missing from {sys.executable}; the project venv "
+                 f"has it: run scripts/setup-venv.sh in the checkout (microdrive-session uses its .venv)")
     db = cantools.database.load_file(args.dbc)
     status, cycles, spikes, hyp = read_log(args.log, db)
     truth = read_truth(args.truth)

@@ -48,7 +48,8 @@ typedef struct {
     uint32_t pace_fps;           ///< --pace: microdrive-sim's frame rate cap on a socket bus
     bool no_score;               ///< --no-score: leave report.json out
     bool quiet;                  ///< --quiet: no progress lines
-    bool no_sample_log;          ///< --no-sample-log: REC_DATA frames stay out of the log
+    bool candump_samples;        ///< --candump-samples: REC_DATA frames go to candump.log too
+    bool no_recording;           ///< --no-recording: no recording.bin / recording.json
     bool no_lcm;                 ///< --no-lcm: no session.lcmlog (and therefore no plots)
     bool no_plots;               ///< --no-plots: no PNG files
     session_param_t params[SESSION_MAX_PARAMS];   ///< --param, in command-line order
@@ -73,12 +74,74 @@ typedef struct {
                                  ///< started before it has its TLM_STATUS (0: unused)
 } session_goal_t;
 
+/// Intervals one electrode's saved recording holds at most (tools/recording
+/// reads as many: REC_MAX_INTERVALS).
+#define SESSION_REC_MAX_INTERVALS 4096u
+#define SESSION_REC_PATH_MAX 4096u
+
+/// One recorded interval of the session's recording.
+typedef struct {
+    uint64_t start_sample;       ///< first sample in the binary
+    uint32_t num_samples;        ///< samples that arrived (REC_DATA)
+    uint32_t requested;          ///< REC_REQ NumSamples
+    uint16_t interval_id;        ///< REC_REQ IntervalId
+    int32_t cycle;               ///< TLM_STATUS Cycle after it (-1: none)
+    double start_s;              ///< simulated time of its first sample (NaN: no SIM_CLOCK)
+    double depth_um;             ///< TLM_STATUS Depth_um after it (NaN: none, or no Hall depth)
+    int32_t hall_code;           ///< last HALL_READING RawCode up to its REC_END (-1: none)
+    bool gap;                    ///< a REC_DATA Seq was skipped or repeated
+    bool ended;                  ///< its REC_END was seen
+    bool complete;               ///< REC_END complete, every requested sample, in sequence
+} session_rec_interval_t;
+
+/// One electrode's recording in progress.
+typedef struct {
+    FILE *bin;                   ///< the binary, written as samples pass
+    uint64_t written;            ///< samples in the binary
+    uint32_t fs_hz;              ///< FE_INFO SampleRate_hz (0: not seen)
+    double gain_uv;              ///< FE_INFO Gain_uV_per_lsb
+    int32_t open;                ///< interval between REC_REQ and REC_END (-1: none)
+    int32_t await_status;        ///< interval whose TLM_STATUS is due (-1: none)
+    int32_t last_hall;           ///< last HALL_READING RawCode (-1: none)
+    uint16_t next_seq;           ///< REC_DATA Seq expected next
+    uint32_t n;                  ///< intervals in iv
+    uint64_t dropped;            ///< intervals past SESSION_REC_MAX_INTERVALS, not saved
+    session_rec_interval_t iv[SESSION_REC_MAX_INTERVALS];
+} session_rec_electrode_t;
+
+/// The session's recording (session_rec.c; docs/session.md "The recording"):
+/// DIR/recording.bin + recording.json (one electrode), else
+/// DIR/recording-e<k>.bin + .json per electrode. About 1.3 MB: static storage.
+typedef struct {
+    bool active;
+    char dir[SESSION_REC_PATH_MAX];
+    char scenario[64];
+    uint64_t seed;
+    uint32_t electrodes;
+    int write_error;             ///< errno of the first failed write (0: none)
+    session_rec_electrode_t el[SESSION_MAX_ELECTRODES];
+} session_rec_t;
+
+/// Opens one binary per electrode in dir. 0 ok; -1 (message in msg, nothing left open).
+int session_rec_open(session_rec_t *r, const char *dir, uint32_t electrodes, const char *scenario, uint64_t seed,
+                     char *msg, size_t msglen);
+/// Follows one frame (FE_INFO, REC_REQ, REC_DATA, HALL_READING, REC_END,
+/// TLM_STATUS); `clock_us` is the last SIM_CLOCK if `clock_seen`.
+void session_rec_frame(session_rec_t *r, const md_frame_t *f, uint64_t clock_us, bool clock_seen);
+/// Drops intervals that never ended, cuts each binary to its last interval,
+/// writes the sidecars and says what was written on `report`. 0 ok, -1 a
+/// file could not be written (named on `report`).
+int session_rec_close(session_rec_t *r, FILE *report);
+/// Closes the binaries without a sidecar (a session that failed to start).
+void session_rec_abandon(session_rec_t *r);
+
 /// The recorder: log file plus what the telemetry says so far.
 typedef struct {
     FILE *log;                   ///< candump -L lines (owned by the caller)
     char iface[16];              ///< interface column of the log
     bool quiet;
-    bool log_samples;            ///< REC_DATA frames go to the log too (default)
+    bool log_samples;            ///< REC_DATA frames go to the log too (--candump-samples)
+    session_rec_t *rec;          ///< the session's recording (NULL: none)
     bool stamp_sim;              ///< time stamps = simulated time (last SIM_CLOCK), not the caller's
     uint32_t electrodes;         ///< electrodes of the scenario
     session_goal_t goal;

@@ -13,14 +13,16 @@ const char *session_cli_usage(void)
     return "usage: microdrive-session --scenario FILE [--seed N] [--bus auto|vcan0|udp|udp:PORT|IFACE|inproc]\n"
            "                          --out DIR [--cycles N | --duration-s S] [--idle-s S] [--pace FPS]\n"
            "                          [--bin-dir DIR] [--python PY] [--param NAME=VALUE]...\n"
-           "                          [--no-score] [--no-lcm] [--no-plots] [--no-sample-log]\n"
-           "                          [--quiet] [--help]\n"
+           "                          [--no-score] [--no-lcm] [--no-plots] [--no-recording]\n"
+           "                          [--candump-samples] [--quiet] [--help]\n"
            "  --scenario FILE   simulator scenario (scenarios/*.yaml)\n"
            "  --seed N          seed of every random stream (default: the scenario's)\n"
            "  --bus SPEC        inproc: simulator + controller in this process, virtual clock, as fast\n"
            "                    as possible; vcan0/IFACE/udp: microdrive-sim and microdrive-fw as\n"
            "                    processes; auto (default): vcan0 if present, else udp\n"
-           "  --out DIR         candump.log (every frame), truth.jsonl, report.json, session.lcmlog,\n"
+           "  --out DIR         recording.bin + recording.json (the samples the controller recorded;\n"
+           "                    recording-e<k>.* per electrode with several), candump.log (every\n"
+           "                    frame but the samples), truth.jsonl, report.json, session.lcmlog,\n"
            "                    tracks_pc.png waveforms.png status.png hypotheses.png truth.png\n"
            "                    [, sim.log, fw.log]\n"
            "  --cycles N        end when every electrode has completed N cycles (TLM_STATUS)\n"
@@ -32,8 +34,9 @@ const char *session_cli_usage(void)
            "                    a burst, so that the controller and the recorder lose none (default\n"
            "                    10000; 0 = no cap); changes when frames go out, never what they are\n"
            "  --bin-dir DIR     where microdrive-sim and microdrive-fw are (default: next to this program)\n"
-           "  --python PY       interpreter for tools/session/score.py (default: $MD_PYTHON, the\n"
-           "                    project venv, python3)\n"
+           "  --python PY       interpreter for score.py and the plots (default: $MD_PYTHON, else the\n"
+           "                    project venv this build was configured with, else a .venv in a folder\n"
+           "                    above this program; none: a message says what to run)\n"
            "  --param NAME=VALUE  set a controller parameter before the start (repeatable; names and\n"
            "                    ranges: microdrive-fw --params-markdown), e.g. --param tracker=1;\n"
            "                    in-process applied to the controller, on a socket bus passed to\n"
@@ -42,8 +45,9 @@ const char *session_cli_usage(void)
            "  --no-lcm          no session.lcmlog (md-lcm-bridge --write-log over candump.log and\n"
            "                    truth.jsonl); implies --no-plots\n"
            "  --no-plots        no PNG files (tools/plots/plot_session.py over session.lcmlog)\n"
-           "  --no-sample-log   leave the REC_DATA frames (~1.7 MB per cycle) out of candump.log; the\n"
-           "                    report does not need them\n"
+           "  --no-recording    no recording.bin / recording.json (~0.6 MB per 10 s interval)\n"
+           "  --candump-samples the REC_DATA frames (the samples, ~1.7 MB per 10 s interval) go into\n"
+           "                    candump.log too; without it they are only in the recording\n"
            "  --quiet           no progress lines\n"
            "Progress: one line per electrode and cycle (TLM_STATUS). Exit: 0 goal reached, 4 ended idle\n"
            "before the goal (report written), 5 the session and its report are fine but the LCM log\n"
@@ -189,8 +193,12 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
             o->no_score = true;
         } else if (strcmp(a, "--quiet") == 0) {
             o->quiet = true;
+        } else if (strcmp(a, "--candump-samples") == 0) {
+            o->candump_samples = true;
         } else if (strcmp(a, "--no-sample-log") == 0) {
-            o->no_sample_log = true;
+            o->candump_samples = false; /* the default; kept so older command lines still run */
+        } else if (strcmp(a, "--no-recording") == 0) {
+            o->no_recording = true;
         } else if (strcmp(a, "--no-lcm") == 0) {
             o->no_lcm = true;
         } else if (strcmp(a, "--no-plots") == 0) {

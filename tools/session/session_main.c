@@ -82,8 +82,12 @@ static void self_dir(char *out, size_t len)
     (void)snprintf(out, len, "%s", dirname(exe));
 }
 
+/* The interpreter for score.py and the plots: --python, $MD_PYTHON, the
+ * project venv this build was configured with, else a .venv in a folder
+ * above this executable (a checkout that moved). NULL when there is none. */
 static const char *pick_python(const session_opts_t *o)
 {
+    static char found[PATH_MAX + 32];
     if (o->python != NULL) {
         return o->python;
     }
@@ -91,7 +95,35 @@ static const char *pick_python(const session_opts_t *o)
     if (env != NULL && env[0] != '\0') {
         return env;
     }
-    return (access(MD_SESSION_PYTHON, X_OK) == 0) ? MD_SESSION_PYTHON : "python3";
+    if (access(MD_SESSION_PYTHON, X_OK) == 0) {
+        return MD_SESSION_PYTHON;
+    }
+    char dir[PATH_MAX];
+    self_dir(dir, sizeof dir);
+    for (int up = 0; up < 8; up++) {   /* build/<preset>/bin is three below the checkout */
+        (void)snprintf(found, sizeof found, "%s/.venv/bin/python", dir);
+        if (access(found, X_OK) == 0) {
+            return found;
+        }
+        char *slash = strrchr(dir, '/');
+        if (slash == NULL || slash == dir) {
+            break;
+        }
+        *slash = '\0';
+    }
+    return NULL;
+}
+
+/* What to run when there is no interpreter for `what`. */
+static void no_python(const char *what)
+{
+    char dir[PATH_MAX];
+    self_dir(dir, sizeof dir);
+    fprintf(stderr,
+            "microdrive-session: no Python for %s: the project venv %s is missing (and no .venv above %s).\n"
+            "  Make it: scripts/setup-venv.sh in the checkout (or configure the build: cmake --preset release);\n"
+            "  or pass --python PY (an interpreter with requirements.txt installed); --no-score / --no-lcm skip it.\n",
+            what, MD_SESSION_PYTHON, dir);
 }
 
 /* Runs argv (argv[0] through PATH); returns its exit status, -1 if it died
@@ -152,7 +184,12 @@ static int run_plots(const session_opts_t *o)
         *dot = '\0';
     }
     (void)snprintf(label, sizeof label, "%s seed %" PRIu64, base, o->seed);
-    (void)snprintf(py, sizeof py, "%s", pick_python(o));
+    const char *python = pick_python(o);
+    if (python == NULL) {
+        no_python("the plots (tools/plots/plot_session.py)");
+        return -1;
+    }
+    (void)snprintf(py, sizeof py, "%s", python);
     env_or(plotter, sizeof plotter, "MD_SESSION_PLOTTER", MD_SESSION_PLOTTER);
     env_or(types, sizeof types, "MD_LCM_TYPES", MD_SESSION_LCM_TYPES);
     (void)snprintf(log, sizeof log, "%s/session.lcmlog", o->out);
@@ -198,7 +235,12 @@ static int run_scorer(const session_opts_t *o, const char *bus_label, const char
     const char *env_scorer = getenv("MD_SESSION_SCORER");
     (void)snprintf(scorer, sizeof scorer, "%s",
                    (env_scorer != NULL && env_scorer[0] != '\0') ? env_scorer : MD_SESSION_SCORER);
-    (void)snprintf(py, sizeof py, "%s", pick_python(o));
+    const char *python = pick_python(o);
+    if (python == NULL) {
+        no_python("the report (tools/session/score.py)");
+        return -1;
+    }
+    (void)snprintf(py, sizeof py, "%s", python);
     (void)snprintf(scen, sizeof scen, "%s", o->scenario);
     (void)snprintf(log, sizeof log, "%s/candump.log", o->out);
     (void)snprintf(truth, sizeof truth, "%s/truth.jsonl", o->out);
@@ -220,8 +262,10 @@ static int run_scorer(const session_opts_t *o, const char *bus_label, const char
 static bool bus_is_inproc(const char *bus) { return strcmp(bus, "inproc") == 0 || strncmp(bus, "inproc:", 7) == 0; }
 
 /* Runs the session of the parsed options; returns the end and the bus label. */
-static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label, size_t len)
+static session_end_t run(session_opts_t *o, const scenario_t *sc, char *bus_label, size_t len)
 {
+    static session_rec_t rec;
+    const uint32_t electrodes = sc->n_electrodes;
     char path[PATH_MAX];
     (void)snprintf(path, sizeof path, "%s/candump.log", o->out);
     FILE *log = fopen(path, "w");
@@ -232,7 +276,16 @@ static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label
     session_track_t track;
     const session_goal_t goal = {o->cycles, (o->cycles > 0u) ? 0u : (uint64_t)(o->duration_s * 1e6)};
     session_track_init(&track, log, "inproc", electrodes, goal, o->quiet);
-    track.log_samples = !o->no_sample_log;
+    track.log_samples = o->candump_samples;
+    if (!o->no_recording) {
+        char msg[SESSION_REC_PATH_MAX + 64u];
+        if (session_rec_open(&rec, o->out, electrodes, sc->name, o->seed, msg, sizeof msg) != 0) {
+            fprintf(stderr, "microdrive-session: %s\n", msg);
+            (void)fclose(log);
+            return SESSION_END_ERROR;
+        }
+        track.rec = &rec;
+    }
     session_end_t end;
     if (bus_is_inproc(o->bus)) {
         (void)snprintf(bus_label, len, "inproc");
@@ -241,6 +294,7 @@ static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label
         if (truth == NULL) {
             fprintf(stderr, "microdrive-session: cannot write %s: %s\n", path, strerror(errno));
             (void)fclose(log);
+            session_rec_abandon(&rec);
             return SESSION_END_ERROR;
         }
         fprintf(stderr, "microdrive-session: bus inproc (simulator and controller in this process, virtual clock)\n");
@@ -254,6 +308,9 @@ static session_end_t run(session_opts_t *o, uint32_t electrodes, char *bus_label
     }
     (void)fclose(log);
     session_track_summary(&track, stderr);
+    if (session_rec_close(track.rec, stderr) != 0 && end != SESSION_END_SIGNAL) {
+        end = SESSION_END_ERROR;
+    }
     return end;
 }
 
@@ -290,7 +347,7 @@ int main(int argc, char *argv[])
     }
     install_signals();
     char bus_label[64];
-    const session_end_t end = run(&o, sc.n_electrodes, bus_label, sizeof bus_label);
+    const session_end_t end = run(&o, &sc, bus_label, sizeof bus_label);
     fprintf(stderr, "microdrive-session: ended: %s\n", session_end_name(end));
     if (end == SESSION_END_ERROR || end == SESSION_END_SIGNAL) {
         return 1;

@@ -20,7 +20,7 @@ void session_track_init(session_track_t *t, FILE *log, const char *iface, uint32
     t->electrodes = (electrodes > SESSION_MAX_ELECTRODES) ? SESSION_MAX_ELECTRODES : electrodes;
     t->goal = goal;
     t->quiet = quiet;
-    t->log_samples = true;
+    t->log_samples = false;
     for (uint32_t e = 0; e < SESSION_MAX_ELECTRODES; e++) {
         t->status_last_cycle[e] = -1;
         t->need_cycle[e] = -1;
@@ -96,6 +96,7 @@ void session_track_frame(session_track_t *t, const md_frame_t *f, uint64_t stamp
     t->frames++;
     track_clock(t, f);
     track_log(t, f, t->stamp_sim ? t->sim_clock_us : stamp_us);
+    session_rec_frame(t->rec, f, t->sim_clock_us, t->clock_seen);
     if ((f->flags & MD_FRAME_FLAG_EXT) != 0u) {
         return;
     }
