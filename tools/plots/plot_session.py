@@ -137,7 +137,17 @@ def check_layout(fig, name):
             raise RuntimeError(f"{name}: {what} does not fit in the figure")
 
 
+def note_empty_panels(fig):
+    """A panel left without data (a session that lost its recordings, a cycle range with no tracks) says so
+    on itself rather than failing the whole set of plots."""
+    for ax in fig.axes:
+        if ax.get_visible() and ax.axison and not has_content(ax):
+            ax.text(0.5, 0.5, "no data for this panel in this session", ha="center", va="center",
+                    transform=ax.transAxes, fontsize=9, color="0.4")
+
+
 def save(fig, out, name, title):
+    note_empty_panels(fig)
     # wrap the title to the figure's width (12 pt characters are ~6.6 pt wide)
     width_chars = max(24, int(fig.get_figwidth() * 72 / 6.6))
     fig.suptitle(textwrap.fill(title, width_chars))
