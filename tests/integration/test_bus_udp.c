@@ -305,18 +305,62 @@ static void test_endpoints_ask_for_the_stock_receive_buffer_only(void)
     md_bus_close(a);
 }
 
-/// Child: opens an endpoint, announces itself with 0x700, then reads `n`
-/// frames slowly (a short sleep after each) and checks their order. Exit 0
-/// if all arrived in order and the kernel dropped none.
-static int child_slow_reader(uint32_t n)
+/// Child side: opens an endpoint and announces itself with 0x700.
+/// 0, or 10 (open failed) / 11 (send failed).
+static int child_open(md_bus_t *bus)
 {
-    md_bus_t bus;
-    if (md_bus_open(&bus, "udp", NULL, 0) != 0) {
+    if (md_bus_open(bus, "udp", NULL, 0) != 0) {
         return 10;
     }
     const md_frame_t hello = make_frame(0x700, 0, 0, 0);
-    if (md_bus_send(&bus, &hello) != 0) {
-        return 11;
+    return (md_bus_send(bus, &hello) == 0) ? 0 : 11;
+}
+
+/// A child process: n, m as its test needs them; its exit status, 0 = all well.
+typedef int (*child_fn)(uint32_t n, uint32_t m);
+
+/// Parent side: forks `child` and waits for its 0x700 on `a`.
+static void start_child(md_bus_t *a, child_fn child, uint32_t n, uint32_t m)
+{
+    const pid_t pid = fork();
+    TEST_ASSERT_TRUE(pid >= 0);
+    if (pid == 0) {
+        _exit(child(n, m));
+    }
+    child_pid = pid;
+    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
+    expect_frame(a, &hello);
+}
+
+/// Parent side: the child exited with status 0.
+static void expect_child_ok(void)
+{
+    int status = -1;
+    TEST_ASSERT_EQUAL_INT((int)child_pid, (int)waitpid(child_pid, &status, 0));
+    child_pid = -1;
+    TEST_ASSERT_TRUE(WIFEXITED(status));
+    TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
+}
+
+/// Sends n 64-byte FD frames numbered by id and first byte.
+static void send_numbered(md_bus_t *a, uint32_t n)
+{
+    for (uint32_t i = 0; i < n; ++i) {
+        const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
+        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
+    }
+}
+
+/// Child: opens an endpoint, announces itself with 0x700, then reads `n`
+/// frames slowly (a short sleep after each) and checks their order. Exit 0
+/// if all arrived in order and the kernel dropped none.
+static int child_slow_reader(uint32_t n, uint32_t m)
+{
+    (void)m;
+    md_bus_t bus;
+    const int opened = child_open(&bus);
+    if (opened != 0) {
+        return opened;
     }
     for (uint32_t i = 0; i < n; ++i) {
         md_frame_t f;
@@ -342,43 +386,27 @@ static void test_a_slow_reader_loses_nothing(void)
     // 8x what the reader's socket buffer holds: without flow control a
     // reader this slow loses most of them.
     const uint32_t n = 4000;
-    const pid_t pid = fork();
-    TEST_ASSERT_TRUE(pid >= 0);
-    if (pid == 0) {
-        _exit(child_slow_reader(n));
-    }
-    child_pid = pid;
-    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
-    expect_frame(a, &hello);
-    for (uint32_t i = 0; i < n; ++i) {
-        const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
-        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
-    }
-    int status = -1;
-    TEST_ASSERT_EQUAL_INT((int)pid, (int)waitpid(pid, &status, 0));
-    child_pid = -1;
+    start_child(a, child_slow_reader, n, 0);
+    send_numbered(a, n);
     char msg[128];
     (void)snprintf(msg, sizeof msg, "%u frames to a slow reader: sender waited %llu times, timed out %llu times",
                    (unsigned)n, (unsigned long long)a->stats.tx_flow_waits,
                    (unsigned long long)a->stats.tx_flow_timeouts);
     TEST_MESSAGE(msg);
-    TEST_ASSERT_TRUE(WIFEXITED(status));
-    TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
+    expect_child_ok();
     TEST_ASSERT_EQUAL_UINT64(0, a->stats.tx_flow_timeouts);
     TEST_ASSERT_EQUAL_UINT64(0, a->stats.rx_overflow);
     md_bus_close(a);
 }
 
 /// Child: announces itself with 0x700, reads `n` frames, then answers 0x701.
-static int child_reader_then_answer(uint32_t n)
+static int child_reader_then_answer(uint32_t n, uint32_t m)
 {
+    (void)m;
     md_bus_t bus;
-    if (md_bus_open(&bus, "udp", NULL, 0) != 0) {
-        return 10;
-    }
-    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
-    if (md_bus_send(&bus, &hello) != 0) {
-        return 11;
+    const int opened = child_open(&bus);
+    if (opened != 0) {
+        return opened;
     }
     for (uint32_t i = 0; i < n; ++i) {
         md_frame_t f;
@@ -400,25 +428,11 @@ static void test_own_echoes_do_not_crowd_out_other_senders(void)
     // its own looped-back datagrams must not fill its queue, or the reader's
     // answer would be dropped.
     const uint32_t n = 5000;
-    const pid_t pid = fork();
-    TEST_ASSERT_TRUE(pid >= 0);
-    if (pid == 0) {
-        _exit(child_reader_then_answer(n));
-    }
-    child_pid = pid;
-    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
-    expect_frame(a, &hello);
-    for (uint32_t i = 0; i < n; ++i) {
-        const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
-        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
-    }
+    start_child(a, child_reader_then_answer, n, 0);
+    send_numbered(a, n);
     const md_frame_t answer = make_frame(0x701, 8, 0, 7);
     expect_frame(a, &answer);
-    int status = -1;
-    TEST_ASSERT_EQUAL_INT((int)pid, (int)waitpid(pid, &status, 0));
-    child_pid = -1;
-    TEST_ASSERT_TRUE(WIFEXITED(status));
-    TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
+    expect_child_ok();
     TEST_ASSERT_EQUAL_UINT64(0, a->stats.rx_overflow);
     expect_nothing(a);
     md_bus_close(a);
@@ -430,12 +444,9 @@ static void test_own_echoes_do_not_crowd_out_other_senders(void)
 static int child_streamer(uint32_t n, uint32_t m)
 {
     md_bus_t bus;
-    if (md_bus_open(&bus, "udp", NULL, 0) != 0) {
-        return 10;
-    }
-    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
-    if (md_bus_send(&bus, &hello) != 0) {
-        return 11;
+    const int opened = child_open(&bus);
+    if (opened != 0) {
+        return opened;
     }
     md_frame_t f;
     if (md_bus_receive(&bus, &f, PEER_US) != 1 || f.id != 0x702u) {
@@ -468,14 +479,7 @@ static void test_two_senders_that_do_not_read_while_sending_lose_nothing(void)
     // sending much more than a buffer's worth at each other without reading
     // is beyond the flow control: docs/bus.md, "Flow control".)
     const uint32_t n = 3000, m = 200;
-    const pid_t pid = fork();
-    TEST_ASSERT_TRUE(pid >= 0);
-    if (pid == 0) {
-        _exit(child_streamer(n, m));
-    }
-    child_pid = pid;
-    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
-    expect_frame(a, &hello);
+    start_child(a, child_streamer, n, m);
     const md_frame_t go = make_frame(0x702, 0, 0, 0);
     TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &go));
     for (uint32_t i = 0; i < m; ++i) {
@@ -486,11 +490,7 @@ static void test_two_senders_that_do_not_read_while_sending_lose_nothing(void)
         const md_frame_t e = make_frame(i & 0x3FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
         expect_frame(a, &e);
     }
-    int status = -1;
-    TEST_ASSERT_EQUAL_INT((int)pid, (int)waitpid(pid, &status, 0));
-    child_pid = -1;
-    TEST_ASSERT_TRUE(WIFEXITED(status));
-    TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
+    expect_child_ok();
     TEST_ASSERT_EQUAL_UINT64(0, a->stats.rx_overflow);
     TEST_ASSERT_EQUAL_UINT64(0, a->stats.tx_flow_timeouts);
     md_bus_close(a);
@@ -506,10 +506,7 @@ static void test_a_reader_that_never_reads_is_marked_stalled_and_counted(void)
     // then marks it stalled and sends on; b's losses are counted at b.
     TEST_ASSERT_EQUAL_INT(0, md_bus_udp_set_flow_wait(a, 50000));
     const uint32_t n = 2000;
-    for (uint32_t i = 0; i < n; ++i) {
-        const md_frame_t f = make_frame(i & 0x7FFu, 64, MD_FRAME_FLAG_FD, (uint8_t)i);
-        TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &f));
-    }
+    send_numbered(a, n);
     TEST_ASSERT_EQUAL_UINT64(1, a->stats.tx_flow_waits);
     TEST_ASSERT_EQUAL_UINT64(1, a->stats.tx_flow_timeouts);
     md_frame_t r;
@@ -550,15 +547,14 @@ static void test_round_trip_time_is_reported(void)
 
 /// Child: opens its own endpoint, announces itself, answers each frame with
 /// id + 1 until it sees id 0x7FF. Exit status 0 = all well.
-static int child_echo(void)
+static int child_echo(uint32_t n, uint32_t m)
 {
+    (void)n;
+    (void)m;
     md_bus_t bus;
-    if (md_bus_open(&bus, "udp", NULL, 0) != 0) {
-        return 10;
-    }
-    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
-    if (md_bus_send(&bus, &hello) != 0) {
-        return 11;
+    const int opened = child_open(&bus);
+    if (opened != 0) {
+        return opened;
     }
     for (unsigned i = 0; i < 100u; ++i) {
         md_frame_t f;
@@ -581,14 +577,7 @@ static void test_two_processes_talk_over_the_bus(void)
 {
     md_bus_t *const a = &bus_ep[0];
     open_udp(a, "udp");
-    const pid_t pid = fork();
-    TEST_ASSERT_TRUE(pid >= 0);
-    if (pid == 0) {
-        _exit(child_echo());
-    }
-    child_pid = pid;
-    const md_frame_t hello = make_frame(0x700, 0, 0, 0);
-    expect_frame(a, &hello);
+    start_child(a, child_echo, 0, 0);
     for (uint32_t i = 0; i < 10u; ++i) {
         const uint8_t flags = (uint8_t)((i % 2u) == 0u ? 0u : MD_FRAME_FLAG_FD);
         const md_frame_t f = make_frame(0x100u + 2u * i, (uint8_t)((i % 2u) == 0u ? 8u : 48u), flags, (uint8_t)i);
@@ -599,11 +588,7 @@ static void test_two_processes_talk_over_the_bus(void)
     }
     const md_frame_t stop = make_frame(0x7FF, 0, 0, 0);
     TEST_ASSERT_EQUAL_INT(0, md_bus_send(a, &stop));
-    int status = -1;
-    TEST_ASSERT_EQUAL_INT((int)pid, (int)waitpid(pid, &status, 0));
-    child_pid = -1;
-    TEST_ASSERT_TRUE(WIFEXITED(status));
-    TEST_ASSERT_EQUAL_INT(0, WEXITSTATUS(status));
+    expect_child_ok();
     md_bus_close(a);
 }
 
