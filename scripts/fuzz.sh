@@ -19,7 +19,8 @@
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-TARGETS_ALL=(fuzz_node fuzz_node_stream fuzz_protocol fuzz_bus_wire fuzz_bus_text fuzz_cluster fuzz_pca fuzz_murty)
+TARGETS_ALL=(fuzz_node fuzz_node_stream fuzz_protocol fuzz_bus_wire fuzz_bus_text fuzz_cluster fuzz_pca fuzz_murty
+    fuzz_recording fuzz_scenario fuzz_truth fuzz_cli)
 
 seconds=30
 runs=""
@@ -58,6 +59,9 @@ max_len_of() {
         fuzz_node|fuzz_node_stream) echo 2048 ;;
         fuzz_cluster) echo 600 ;;
         fuzz_pca) echo 2048 ;;
+        fuzz_recording|fuzz_scenario) echo 2048 ;;  # the shipped seeds are below 1.5 kB
+        fuzz_truth) echo 1200 ;;                     # four or five truth lines
+        fuzz_cli) echo 512 ;;
         *) echo 1024 ;;
     esac
 }
@@ -100,6 +104,8 @@ for t in "${targets[@]}"; do
     [[ -n "$runs" ]] && limit=(-runs="$runs")
     par=()
     [[ "$jobs" -gt 1 ]] && par=(-fork="$jobs" -ignore_crashes=0)
+    # Text formats get a dictionary of their keys and keywords (tests/fuzz/dict/).
+    [[ -f "$ROOT/tests/fuzz/dict/$t.dict" ]] && par+=(-dict="$ROOT/tests/fuzz/dict/$t.dict")
     log="$build_dir/$t.fuzz.log"
     start=$(date +%s)
     rc=0
