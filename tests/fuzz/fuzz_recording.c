@@ -63,10 +63,15 @@ static void write_file(const char *path, const uint8_t *p, size_t n)
     FUZZ_CHECK(fclose(f) == 0);
 }
 
-/* "PATH: reason" with a non-empty reason. */
-static bool names(const char *err, const char *path)
+/* "PATH: reason" with a non-empty reason; control bytes of PATH written as \xNN. */
+static bool names(const char *err, const char *raw_path)
 {
-    const size_t n = strlen(path);
+    char path[4u * REC_PATH_MAX + 1u];
+    size_t n = 0u;
+    for (const unsigned char *p = (const unsigned char *)raw_path; *p != '\0'; ++p) {
+        n += (*p < 0x20u || *p == 0x7fu) ? (size_t)sprintf(&path[n], "\\x%02x", *p) : (path[n] = (char)*p, 1u);
+    }
+    path[n] = '\0';
     return n > 0u && strncmp(err, path, n) == 0 && err[n] == ':' && err[n + 1u] == ' ' && err[n + 2u] != '\0';
 }
 
