@@ -20,7 +20,7 @@ set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 TARGETS_ALL=(fuzz_node fuzz_node_stream fuzz_protocol fuzz_bus_wire fuzz_bus_text fuzz_cluster fuzz_pca fuzz_murty
-    fuzz_recording fuzz_scenario fuzz_truth fuzz_cli)
+    fuzz_recording fuzz_scenario fuzz_truth fuzz_cli fuzz_ground_truth_csv)
 
 seconds=30
 runs=""
@@ -62,6 +62,7 @@ max_len_of() {
         fuzz_recording|fuzz_scenario) echo 2048 ;;  # the shipped seeds are below 1.5 kB
         fuzz_truth) echo 1200 ;;                     # four or five truth lines
         fuzz_cli) echo 512 ;;
+        fuzz_ground_truth_csv) echo 1024 ;;
         *) echo 1024 ;;
     esac
 }
@@ -116,10 +117,10 @@ for t in "${targets[@]}"; do
     wall=$(( $(date +%s) - start ))
     execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | awk '{s+=$2} END {print s+0}')
     if [[ "$execs" -eq 0 ]]; then  # fork mode prints no final stats: take the last progress line
-        execs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#')
+        execs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#' || true)
     fi
-    cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}')
-    ft=$(grep -oE 'ft: [0-9]+' "$log" | tail -1 | awk '{print $2}')
+    cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}' || true)
+    ft=$(grep -oE 'ft: [0-9]+' "$log" | tail -1 | awk '{print $2}' || true)
     result="ok"
     if [[ $rc -eq 72 ]]; then
         result="interrupted (SIGINT; figures up to that point)"  # libFuzzer's interrupt exit code
