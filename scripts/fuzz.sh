@@ -5,6 +5,8 @@
 #   scripts/fuzz.sh [options] [TARGET...]        (default: every target)
 #     --seconds N      fuzz each target for N seconds (default 30)
 #     --runs N         fuzz each target for N executions instead (e.g. 10000000)
+#     --max-seconds S  with --runs: stop a target after S seconds all the same
+#                      (a shared machine may not reach N in the time there is)
 #     --jobs N         parallel libFuzzer workers per target (-fork=N; default 1)
 #     --build-dir DIR  fuzz build directory (default build/fuzz)
 #     --no-build       use the binaries already in DIR
@@ -24,6 +26,7 @@ TARGETS_ALL=(fuzz_node fuzz_node_stream fuzz_protocol fuzz_bus_wire fuzz_bus_tex
 
 seconds=30
 runs=""
+max_seconds=""
 jobs=1
 build_dir="$ROOT/build/fuzz"
 do_build=1
@@ -35,13 +38,14 @@ while [[ $# -gt 0 ]]; do
     case "$1" in
         --seconds) seconds="$2"; shift 2 ;;
         --runs) runs="$2"; shift 2 ;;
+        --max-seconds) max_seconds="$2"; shift 2 ;;
         --jobs) jobs="$2"; shift 2 ;;
         --build-dir) build_dir="$2"; shift 2 ;;
         --no-build) do_build=0; shift ;;
         --replay-only) replay_only=1; do_build=0; shift ;;
         --merge) merge=1; shift ;;
         --list) printf '%s\n' "${TARGETS_ALL[@]}"; exit 0 ;;
-        -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
         fuzz_*) targets+=("$1"); shift ;;
         *) echo "fuzz.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
     esac
@@ -103,6 +107,7 @@ for t in "${targets[@]}"; do
     mkdir -p "$work" "$artifacts"
     limit=(-max_total_time="$seconds")
     [[ -n "$runs" ]] && limit=(-runs="$runs")
+    [[ -n "$runs" && -n "$max_seconds" ]] && limit+=(-max_total_time="$max_seconds")
     par=()
     [[ "$jobs" -gt 1 ]] && par=(-fork="$jobs" -ignore_crashes=0)
     # Text formats get a dictionary of their keys and keywords (tests/fuzz/dict/).
