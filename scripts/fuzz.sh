@@ -7,6 +7,8 @@
 #     --runs N         fuzz each target for N executions instead (e.g. 10000000)
 #     --max-seconds S  with --runs: stop a target after S seconds all the same
 #                      (a shared machine may not reach N in the time there is)
+#     --timeout S      an execution longer than S seconds is a hang (default 10; a
+#                      loaded shared machine can stall a process that long)
 #     --jobs N         parallel libFuzzer workers per target (-fork=N; default 1)
 #     --build-dir DIR  fuzz build directory (default build/fuzz)
 #     --no-build       use the binaries already in DIR
@@ -27,6 +29,7 @@ TARGETS_ALL=(fuzz_node fuzz_node_stream fuzz_protocol fuzz_bus_wire fuzz_bus_tex
 seconds=30
 runs=""
 max_seconds=""
+timeout=10
 jobs=1
 build_dir="$ROOT/build/fuzz"
 do_build=1
@@ -39,13 +42,14 @@ while [[ $# -gt 0 ]]; do
         --seconds) seconds="$2"; shift 2 ;;
         --runs) runs="$2"; shift 2 ;;
         --max-seconds) max_seconds="$2"; shift 2 ;;
+        --timeout) timeout="$2"; shift 2 ;;
         --jobs) jobs="$2"; shift 2 ;;
         --build-dir) build_dir="$2"; shift 2 ;;
         --no-build) do_build=0; shift ;;
         --replay-only) replay_only=1; do_build=0; shift ;;
         --merge) merge=1; shift ;;
         --list) printf '%s\n' "${TARGETS_ALL[@]}"; exit 0 ;;
-        -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
         fuzz_*) targets+=("$1"); shift ;;
         *) echo "fuzz.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
     esac
@@ -117,7 +121,7 @@ for t in "${targets[@]}"; do
     rc=0
     dirs=("$work")
     [[ -d "$seeds" ]] && dirs+=("$seeds")  # new inputs go to the first directory only
-    "$bin" "${limit[@]}" "${par[@]}" -max_len="$max_len" -timeout=10 -rss_limit_mb=2048 \
+    "$bin" "${limit[@]}" "${par[@]}" -max_len="$max_len" -timeout="$timeout" -rss_limit_mb=2048 \
         -print_final_stats=1 -artifact_prefix="$artifacts/" "${dirs[@]}" >"$log" 2>&1 || rc=$?
     wall=$(( $(date +%s) - start ))
     execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | awk '{s+=$2} END {print s+0}')
