@@ -5,6 +5,10 @@
 #   scripts/fuzz.sh [options] [TARGET...]        (default: every target)
 #     --seconds N      fuzz each target for N seconds (default 30)
 #     --runs N         fuzz each target for N executions instead (e.g. 10000000)
+#     --max-seconds S  with --runs: stop a target after S seconds all the same
+#                      (a shared machine may not reach N in the time there is)
+#     --timeout S      an execution longer than S seconds is a hang (default 10; a
+#                      loaded shared machine can stall a process that long)
 #     --jobs N         parallel libFuzzer workers per target (-fork=N; default 1)
 #     --build-dir DIR  fuzz build directory (default build/fuzz)
 #     --no-build       use the binaries already in DIR
@@ -19,10 +23,13 @@
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-TARGETS_ALL=(fuzz_node fuzz_node_stream fuzz_protocol fuzz_bus_wire fuzz_bus_text fuzz_cluster fuzz_pca fuzz_murty)
+TARGETS_ALL=(fuzz_node fuzz_node_stream fuzz_protocol fuzz_bus_wire fuzz_bus_text fuzz_cluster fuzz_pca fuzz_murty
+    fuzz_recording fuzz_scenario fuzz_truth fuzz_cli fuzz_ground_truth_csv)
 
 seconds=30
 runs=""
+max_seconds=""
+timeout=10
 jobs=1
 build_dir="$ROOT/build/fuzz"
 do_build=1
@@ -34,13 +41,15 @@ while [[ $# -gt 0 ]]; do
     case "$1" in
         --seconds) seconds="$2"; shift 2 ;;
         --runs) runs="$2"; shift 2 ;;
+        --max-seconds) max_seconds="$2"; shift 2 ;;
+        --timeout) timeout="$2"; shift 2 ;;
         --jobs) jobs="$2"; shift 2 ;;
         --build-dir) build_dir="$2"; shift 2 ;;
         --no-build) do_build=0; shift ;;
         --replay-only) replay_only=1; do_build=0; shift ;;
         --merge) merge=1; shift ;;
         --list) printf '%s\n' "${TARGETS_ALL[@]}"; exit 0 ;;
-        -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
         fuzz_*) targets+=("$1"); shift ;;
         *) echo "fuzz.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
     esac
@@ -58,6 +67,10 @@ max_len_of() {
         fuzz_node|fuzz_node_stream) echo 2048 ;;
         fuzz_cluster) echo 600 ;;
         fuzz_pca) echo 2048 ;;
+        fuzz_recording|fuzz_scenario) echo 2048 ;;  # the shipped seeds are below 1.5 kB
+        fuzz_truth) echo 1200 ;;                     # four or five truth lines
+        fuzz_cli) echo 512 ;;
+        fuzz_ground_truth_csv) echo 1024 ;;
         *) echo 1024 ;;
     esac
 }
@@ -98,22 +111,25 @@ for t in "${targets[@]}"; do
     mkdir -p "$work" "$artifacts"
     limit=(-max_total_time="$seconds")
     [[ -n "$runs" ]] && limit=(-runs="$runs")
+    [[ -n "$runs" && -n "$max_seconds" ]] && limit+=(-max_total_time="$max_seconds")
     par=()
     [[ "$jobs" -gt 1 ]] && par=(-fork="$jobs" -ignore_crashes=0)
+    # Text formats get a dictionary of their keys and keywords (tests/fuzz/dict/).
+    [[ -f "$ROOT/tests/fuzz/dict/$t.dict" ]] && par+=(-dict="$ROOT/tests/fuzz/dict/$t.dict")
     log="$build_dir/$t.fuzz.log"
     start=$(date +%s)
     rc=0
     dirs=("$work")
     [[ -d "$seeds" ]] && dirs+=("$seeds")  # new inputs go to the first directory only
-    "$bin" "${limit[@]}" "${par[@]}" -max_len="$max_len" -timeout=10 -rss_limit_mb=2048 \
+    "$bin" "${limit[@]}" "${par[@]}" -max_len="$max_len" -timeout="$timeout" -rss_limit_mb=2048 \
         -print_final_stats=1 -artifact_prefix="$artifacts/" "${dirs[@]}" >"$log" 2>&1 || rc=$?
     wall=$(( $(date +%s) - start ))
     execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | awk '{s+=$2} END {print s+0}')
     if [[ "$execs" -eq 0 ]]; then  # fork mode prints no final stats: take the last progress line
-        execs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#')
+        execs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#' || true)
     fi
-    cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}')
-    ft=$(grep -oE 'ft: [0-9]+' "$log" | tail -1 | awk '{print $2}')
+    cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}' || true)
+    ft=$(grep -oE 'ft: [0-9]+' "$log" | tail -1 | awk '{print $2}' || true)
     result="ok"
     if [[ $rc -eq 72 ]]; then
         result="interrupted (SIGINT; figures up to that point)"  # libFuzzer's interrupt exit code

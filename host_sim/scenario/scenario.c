@@ -134,7 +134,25 @@ __attribute__((format(printf, 3, 4))) static void perr(ctx_t *c, size_t line, co
     if (c->err == NULL || c->used + 1u >= c->errlen) {
         return;
     }
-    const int n = snprintf(c->err + c->used, c->errlen - c->used, "%s:%zu: %s\n", c->file, line, msg);
+    /* One line per error: a value quoted in the message may hold line breaks (a
+     * plain scalar folded over blank lines, an escape in a quoted one) or other
+     * control bytes; they are written as escapes. */
+    char line_msg[4u * sizeof msg];
+    size_t o = 0u;
+    for (const char *p = msg; *p != '\0' && o + 5u < sizeof line_msg; ++p) {
+        const unsigned char ch = (unsigned char)*p;
+        if (ch >= 0x20u && ch != 0x7fu) {
+            line_msg[o++] = (char)ch;
+        } else {
+            const int w = (ch == '\n')   ? snprintf(&line_msg[o], sizeof line_msg - o, "\\n")
+                          : (ch == '\t') ? snprintf(&line_msg[o], sizeof line_msg - o, "\\t")
+                          : (ch == '\r') ? snprintf(&line_msg[o], sizeof line_msg - o, "\\r")
+                                         : snprintf(&line_msg[o], sizeof line_msg - o, "\\x%02x", (unsigned)ch);
+            o += (w > 0) ? (size_t)w : 0u;
+        }
+    }
+    line_msg[o] = '\0';
+    const int n = snprintf(c->err + c->used, c->errlen - c->used, "%s:%zu: %s\n", c->file, line, line_msg);
     if (n > 0) {
         c->used += (size_t)n;
     }

@@ -151,6 +151,23 @@ static void test_error_buffer_truncation_is_safe(void)
     TEST_ASSERT_TRUE(strlen(small) < sizeof small);
 }
 
+/* A value quoted in a message keeps its error on one line: a plain scalar
+ * folded over blank lines holds '\n', a double-quoted one any escape. */
+static void test_values_with_line_breaks_stay_on_one_line(void)
+{
+    static const char text[] = "name: x\nelectrodes:\n  - start_um: 1000\n    neurons:\n"
+                               "      - {depth_um: 1200, shape: bi\n\n\n  phasic}\n"
+                               "duration_s: \"1\\n2\\t\\x01\"\n";
+    TEST_ASSERT_EQUAL_INT(2, scenario_parse(&sc, text, sizeof text - 1u, "s.yaml", err, sizeof err));
+    expect("s.yaml:5: 'shape' must be biphasic or triphasic, got 'bi\\n\\nphasic'\n");
+    expect("s.yaml:9: 'duration_s' must be a number, got '1\\n2\\t\\x01'\n");
+    size_t lines = 0u;
+    for (const char *p = err; *p != '\0'; ++p) {
+        lines += (*p == '\n') ? 1u : 0u;
+    }
+    TEST_ASSERT_EQUAL_size_t(2u, lines);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -162,5 +179,6 @@ int main(void)
     RUN_TEST(test_missing_required_fields);
     RUN_TEST(test_syntax_and_structure_errors);
     RUN_TEST(test_error_buffer_truncation_is_safe);
+    RUN_TEST(test_values_with_line_breaks_stay_on_one_line);
     return UNITY_END();
 }

@@ -388,6 +388,39 @@ static void test_malformed_and_out_of_range_counted(void)
     TEST_ASSERT_EQUAL_INT(0, count(LB_CH_STATUS));
 }
 
+/* Integer fields that do not fit their LCM type (int8 electrode from 0, int32
+ * neuron, int64 sample, a finite t_s) refuse the record instead of being
+ * converted out of range; nothing is published from it. */
+static void test_truth_lines_out_of_range_refused(void)
+{
+    static const char *const bad[] = {
+        "{\"type\":\"spike\",\"electrode\":9223372036854775807,\"sample\":1,\"neuron\":0}",
+        "{\"type\":\"spike\",\"electrode\":128,\"sample\":1,\"neuron\":0}",
+        "{\"type\":\"spike\",\"electrode\":-1,\"sample\":1,\"neuron\":0}",
+        "{\"type\":\"spike\",\"electrode\":0.5,\"sample\":1,\"neuron\":0}",
+        "{\"type\":\"spike\",\"electrode\":0,\"sample\":1e19,\"neuron\":0}",
+        "{\"type\":\"spike\",\"electrode\":0,\"sample\":-1,\"neuron\":0}",
+        "{\"type\":\"spike\",\"electrode\":0,\"sample\":1,\"neuron\":3000000000}",
+        "{\"type\":\"neuron\",\"electrode\":1e300,\"neuron\":0}",
+        "{\"type\":\"death\",\"t_s\":1e999,\"electrode\":0,\"neuron\":0}",
+        "{\"type\":\"state\",\"t_s\":1,\"electrode\":0,\"tip_um\":1,\"neurons\":[{\"neuron\":-3e9}]}",
+        "{\"type\":\"session\",\"seed\":1e20,\"sample_rate_hz\":30000,\"bg_rms_uv\":[]}",
+        "{\"type\":\"session\",\"seed\":1,\"sample_rate_hz\":-5,\"bg_rms_uv\":[]}",
+    };
+    for (size_t k = 0u; k < sizeof bad / sizeof bad[0]; ++k) {
+        TEST_ASSERT_EQUAL_INT_MESSAGE(-1, lb_feed_truth_line(g_st, bad[k]), bad[k]);
+    }
+    lb_flush(g_st);
+    TEST_ASSERT_EQUAL_UINT64(sizeof bad / sizeof bad[0], lb_stats(g_st)->truth_errors);
+    TEST_ASSERT_EQUAL_UINT64(0, lb_stats(g_st)->truth_records);
+    TEST_ASSERT_EQUAL_INT(0, count(LB_CH_TRUTH_SPIKES) + count(LB_CH_TRUTH_DEATH) + count(LB_CH_TRUTH_STATE) +
+                                 count(LB_CH_TRUTH_SESSION));
+    /* a uint64 seed near 2^64 - 1 arrives as 2^64 through a double: kept as its int64 bits */
+    TEST_ASSERT_EQUAL_INT(0, lb_feed_truth_line(g_st, "{\"type\":\"session\",\"seed\":18446744073709551615,"
+                                                      "\"sample_rate_hz\":30000,\"bg_rms_uv\":[1]}"));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, lb_truth_time_us(g_st, "{\"type\":\"death\",\"t_s\":1e300}"));
+}
+
 static void test_truth_lines(void)
 {
     TEST_ASSERT_EQUAL_INT(0, lb_feed_truth_line(g_st, "{\"type\":\"session\",\"seed\":3,\"sample_rate_hz\":30000.0,"
@@ -458,5 +491,6 @@ int main(void)
     RUN_TEST(test_actuator_status);
     RUN_TEST(test_malformed_and_out_of_range_counted);
     RUN_TEST(test_truth_lines);
+    RUN_TEST(test_truth_lines_out_of_range_refused);
     return UNITY_END();
 }

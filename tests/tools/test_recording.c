@@ -520,6 +520,14 @@ static void test_too_many_intervals(void)
                 __LINE__);
 }
 
+/* A "file" field may hold any byte; the message naming it stays one line. */
+static void test_control_bytes_of_a_path_stay_on_one_line(void)
+{
+    EXPECT_OPEN_ERROR(MD_E_IO, "no\\x0abin\\x09x", "cannot open",
+                      "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", "
+                      "\"file\": \"no\\nbin\\tx\"}");
+}
+
 int main(void)
 {
     (void)snprintf(g_dir, sizeof g_dir, "/tmp/test_recording.XXXXXX");
@@ -542,6 +550,7 @@ int main(void)
     RUN_TEST(test_bad_binary);
     RUN_TEST(test_bad_intervals);
     RUN_TEST(test_too_many_intervals);
+    RUN_TEST(test_control_bytes_of_a_path_stay_on_one_line);
     const int rc = UNITY_END();
     (void)rmdir(g_dir);
     return rc;

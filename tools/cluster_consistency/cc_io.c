@@ -3,6 +3,7 @@
 #include "cc_io.h"
 
 #include <stdio.h>
+#include <sys/types.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -31,38 +32,119 @@ static md_status_t truth_push(cc_truth_t *t, size_t *cap, uint64_t s, int32_t id
     return MD_OK;
 }
 
-md_status_t cc_read_truth(const char *dir, uint32_t ch, cc_truth_t *truth)
+/* Digits at *p as an unsigned value <= max; advances *p. 0 or -1. */
+static int cc_digits(const char **p, uint64_t max, uint64_t *v)
+{
+    const char *q = *p;
+    uint64_t x = 0u;
+    if ((*q < '0') || (*q > '9')) {
+        return -1;
+    }
+    for (; (*q >= '0') && (*q <= '9'); ++q) {
+        const uint64_t d = (uint64_t)(*q - '0');
+        if (x > (max - d) / 10u) {
+            return -1; /* beyond max */
+        }
+        x = x * 10u + d;
+    }
+    *p = q;
+    *v = x;
+    return 0;
+}
+
+/* One record "SAMPLE,CHANNEL,NEURON" (decimal; NEURON may be negative), the whole line. */
+static int cc_record(const char *line, uint64_t *s, uint32_t *c, int32_t *id)
+{
+    const char *p = line;
+    uint64_t cv = 0u;
+    uint64_t iv = 0u;
+    const int neg = (cc_digits(&p, UINT64_MAX, s) == 0) && (*p++ == ',') && (cc_digits(&p, UINT32_MAX, &cv) == 0) &&
+                            (*p++ == ',')
+                        ? ((*p == '-') ? 1 : 0)
+                        : -1;
+    if (neg < 0) {
+        return -1;
+    }
+    p += neg;
+    if ((cc_digits(&p, neg ? 2147483648u : 2147483647u, &iv) != 0) || (*p != '\0')) {
+        return -1;
+    }
+    *c = (uint32_t)cv;
+    *id = neg ? (int32_t)(-(int64_t)iv) : (int32_t)iv;
+    return 0;
+}
+
+md_status_t cc_read_truth(const char *dir, uint32_t ch, cc_truth_t *truth, char *err, size_t errlen)
 {
     memset(truth, 0, sizeof *truth);
     truth->max_neuron = -1;
+    if ((err != NULL) && (errlen > 0u)) {
+        err[0] = '\0';
+    }
     char path[4096];
     (void)snprintf(path, sizeof path, "%s/ground_truth.csv", dir);
     FILE *f = fopen(path, "r");
     if (f == NULL) {
         return MD_OK;
     }
-    char line[256];
+    char *line = NULL;
+    size_t line_cap = 0u;
     size_t cap = 0u;
     md_status_t st = MD_OK;
     uint64_t last = 0u;
-    while ((st == MD_OK) && (fgets(line, (int)sizeof line, f) != NULL)) {
-        unsigned long long s = 0u;
-        unsigned c = 0u;
-        int id = 0;
-        if (sscanf(line, "%llu,%u,%d", &s, &c, &id) != 3) {
-            continue; /* header */
+    const char *why = NULL;
+    size_t line_no = 0u;
+    ssize_t n = 0;
+    while ((st == MD_OK) && ((n = getline(&line, &line_cap, f)) >= 0)) {
+        line_no++;
+        size_t len = (size_t)n;
+        if ((len > 0u) && (line[len - 1u] == '\n')) {
+            line[--len] = '\0';
+        }
+        if ((len > 0u) && (line[len - 1u] == '\r')) {
+            line[--len] = '\0';
+        }
+        if (strlen(line) != len) {
+            why = "NUL byte in the line";
+            st = MD_E_FRAME;
+            break;
+        }
+        if ((len == 0u) || ((line_no == 1u) && (strcmp(line, CC_TRUTH_HEADER) == 0))) {
+            continue;
+        }
+        uint64_t s = 0u;
+        uint32_t c = 0u;
+        int32_t id = 0;
+        if (cc_record(line, &s, &c, &id) != 0) {
+            why = "not a record SAMPLE,CHANNEL,NEURON (decimal integers: uint64, uint32, int32)";
+            st = MD_E_FRAME;
+            break;
         }
         if ((c != ch) || (id < 0)) {
             continue;
         }
-        if ((uint64_t)s < last) {
-            st = MD_E_FRAME; /* the exporter writes ascending samples */
+        if (s < last) {
+            why = "samples of the channel not ascending"; /* the exporter writes them ascending */
+            st = MD_E_FRAME;
             break;
         }
-        last = (uint64_t)s;
-        st = truth_push(truth, &cap, (uint64_t)s, (int32_t)id);
+        last = s;
+        st = truth_push(truth, &cap, s, id);
+        why = (st != MD_OK) ? "out of memory" : NULL;
     }
+    const int read_error = ferror(f);
+    free(line);
     (void)fclose(f);
+    if ((st == MD_OK) && (read_error != 0)) {
+        why = "read error";
+        st = MD_E_IO;
+    }
+    if (st != MD_OK) {
+        cc_truth_free(truth);
+        if ((err != NULL) && (errlen > 0u)) {
+            (void)snprintf(err, errlen, "%s:%zu: %s", path, line_no, why);
+        }
+    }
     return st;
 }
 

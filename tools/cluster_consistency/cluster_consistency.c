@@ -519,8 +519,9 @@ int main(int argc, char **argv)
         return (st == MD_E_ARG) ? 2 : 1; /* MD_E_ARG: a --channel the recording lacks */
     }
     cc_truth_t truth;
-    if (cc_read_truth(o.dir, o.channel, &truth) != MD_OK) {
-        (void)fprintf(stderr, "cluster-consistency: bad ground_truth.csv\n");
+    char why[4400];
+    if (cc_read_truth(o.dir, o.channel, &truth, why, sizeof why) != MD_OK) {
+        (void)fprintf(stderr, "cluster-consistency: %s\n", why);
         return 1;
     }
     size_t cap = 0u;

@@ -101,7 +101,11 @@ int64_t lb_truth_time_us(const lb_t *st, const char *line);
 /// other record (or at lb_flush); spikes are batched (LB_TRUTH_SPIKE_BATCH, one
 /// electrode, uninterrupted run); state and death go out at once. Blank lines
 /// are skipped; records of other types are counted in truth_ignored. Returns
-/// 0, or -1 on a line that failed to parse or lacks a required field (counted).
+/// 0, or -1 on a line that failed to parse, lacks a required field, or has a
+/// value its LCM field cannot hold: an electrode not a whole number 0..127, a
+/// neuron id outside int32, a sample outside 0..2^63, a non-finite t_s, a
+/// sample_rate_hz not > 0, a seed outside -2^63..2^64 (counted; nothing of
+/// the record is published).
 int lb_feed_truth_line(lb_t *st, const char *line);
 
 /// Counters so far.

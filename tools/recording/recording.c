@@ -29,13 +29,27 @@ __attribute__((format(printf, 3, 4))) static md_status_t rec_fail(const rec_ctx_
     if ((c->err == NULL) || (c->errlen == 0u)) {
         return st;
     }
-    const int n = snprintf(c->err, c->errlen, "%s: ", c->path);
-    if ((n > 0) && ((size_t)n < c->errlen)) {
+    char msg[REC_ERR_MAX];
+    const int n = snprintf(msg, sizeof msg, "%s: ", c->path);
+    if ((n > 0) && ((size_t)n < sizeof msg)) {
         va_list ap;
         va_start(ap, fmt);
-        (void)vsnprintf(&c->err[n], c->errlen - (size_t)n, fmt, ap);
+        (void)vsnprintf(&msg[n], sizeof msg - (size_t)n, fmt, ap);
         va_end(ap);
     }
+    /* One line: control bytes of a path (a "file" field may hold any) as \xNN. */
+    size_t o = 0u;
+    for (size_t i = 0u; (msg[i] != '\0') && (o + 1u < c->errlen); ++i) {
+        const unsigned char ch = (unsigned char)msg[i];
+        if ((ch >= 0x20u) && (ch != 0x7fu)) {
+            c->err[o++] = (char)ch;
+        } else if (o + 5u < c->errlen) {
+            o += (size_t)snprintf(&c->err[o], c->errlen - o, "\\x%02x", (unsigned)ch);
+        } else {
+            break;
+        }
+    }
+    c->err[o] = '\0';
     return st;
 }
 

@@ -46,7 +46,8 @@
 ///    both counts; neither is ever dropped silently.
 ///
 /// Errors: every function writes one line "PATH: reason" into err (no newline):
-/// the file, the field or byte offset, and what is wrong.
+/// the file, the field or byte offset, and what is wrong. Control bytes (a
+/// "file" field may name a path with any) are written as \xNN.
 #ifndef RECORDING_H
 #define RECORDING_H
 
@@ -58,7 +59,7 @@
 #define REC_MAX_INTERVALS 4096u   ///< intervals of one recording
 #define REC_MAX_CHANNELS 1024u    ///< channels of one recording
 #define REC_PATH_MAX 1024u        ///< longest path of the binary
-#define REC_ERR_MAX (2u * REC_PATH_MAX + 256u) ///< err buffer that holds any message whole
+#define REC_ERR_MAX (2u * REC_PATH_MAX + 256u) ///< err buffer that holds any message whole (unless control bytes are escaped)
 #define REC_FS_MIN_HZ 1000.0
 #define REC_FS_MAX_HZ 200000.0
 #define REC_F32_MAX_COUNT_UV 1.0  ///< float32: coarsest int16 step (µV per count)

@@ -27,9 +27,9 @@ const char *session_cli_usage(void)
            "                    [, sim.log, fw.log]\n"
            "  --cycles N        end when every electrode has completed N cycles (TLM_STATUS)\n"
            "  --duration-s S    end when simulated time passed S and every interval begun before\n"
-           "                    S is reported (default: the scenario's duration_s)\n"
+           "                    S is reported (default: the scenario's duration_s; at most 1e9)\n"
            "  --idle-s S        end early when nothing but heartbeats moved for S seconds (virtual\n"
-           "                    seconds in-process, wall seconds otherwise; default 30)\n"
+           "                    seconds in-process, wall seconds otherwise; default 30, at most 1e9)\n"
            "  --pace FPS        socket bus: microdrive-sim sends at most FPS frames per wall second after\n"
            "                    a burst, so that the controller and the recorder lose none (default\n"
            "                    10000; 0 = no cap); changes when frames go out, never what they are\n"
@@ -66,12 +66,16 @@ static int parse_u64(const char *s, uint64_t *v)
     return 0;
 }
 
+/// Longest --duration-s / --idle-s: both become microsecond counts (uint64),
+/// so infinity or 1e300 must not get through (the simulator's limit).
+#define SESSION_SECONDS_MAX 1e9
+
 static int parse_double(const char *s, double *v)
 {
     char *end = NULL;
     errno = 0;
     *v = strtod(s, &end);
-    return (errno != 0 || end == s || *end != '\0' || !(*v >= 0.0)) ? -1 : 0;
+    return (errno != 0 || end == s || *end != '\0' || !(*v >= 0.0) || !(*v <= SESSION_SECONDS_MAX)) ? -1 : 0;
 }
 
 /* Dense id of the parameter called `name` (md_params table), or -1. */

@@ -5,7 +5,6 @@
 /// cycles), sleeps in the bus receive until the controller's next deadline.
 /// No heap (md_no_heap.h; the binary is checked with nm).
 #include <errno.h>
-#include <getopt.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,6 +12,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "fw_cli.h"
 #include "md_bus.h"
 #include "md_controller.h"
 
@@ -80,26 +80,6 @@ static void usage(FILE *out)
                   "SIGINT/SIGTERM end the process cleanly.\n");
 }
 
-/* Applies one command-line parameter through the same checks as a bus set. */
-static int set_param(md_node_t *node, uint16_t index, const char *text, const char *opt)
-{
-    char *end = NULL;
-    errno = 0;
-    const double v = strtod(text, &end);
-    if (errno != 0 || end == text || *end != '\0') {
-        (void)fprintf(stderr, "microdrive-fw: %s: not a number: '%s'\n", opt, text);
-        return -1;
-    }
-    const md_param_status_t st = md_params_set(&node->params, index, v);
-    if (st != MD_PARAM_OK) {
-        const md_param_def_t *d = md_params_def((size_t)md_params_find(index));
-        (void)fprintf(stderr, "microdrive-fw: %s %s rejected (status %d; range %g..%g, whole number)\n", opt,
-                      text, (int)st, d->min, d->max);
-        return -1;
-    }
-    return 0;
-}
-
 static void print_params_markdown(void)
 {
     (void)printf("| index | name | unit | min | max | default | access | meaning |\n");
@@ -114,89 +94,6 @@ static void print_params_markdown(void)
                      d->unit, d->min, d->max, d->def, access,
                      ((d->flags & MD_PARAM_F_INTEGER) != 0u) ? ", integer" : "", d->doc);
     }
-}
-
-/// --param options taken at most.
-#define MAX_PARAM_OPTS 32
-
-typedef struct {
-    const char *bus_spec;
-    const char *heartbeat_ms;
-    const char *heartbeat_timeout_ms;
-    int auto_start;
-    const char *param[MAX_PARAM_OPTS];   /* "NAME=VALUE" */
-    int n_param;
-} options_t;
-
-/* Applies one --param NAME=VALUE: NAME looked up in the parameter table. */
-static int set_named_param(md_node_t *node, const char *arg)
-{
-    const char *eq = strchr(arg, '=');
-    const ptrdiff_t name_len = (eq == NULL) ? 0 : eq - arg;
-    const size_t len = (size_t)name_len;
-    for (size_t i = 0u; i < md_params_count() && len > 0u; ++i) {
-        const md_param_def_t *d = md_params_def(i);
-        if (strlen(d->name) == len && strncmp(d->name, arg, len) == 0) {
-            return set_param(node, d->index, eq + 1, arg);
-        }
-    }
-    (void)fprintf(stderr, "microdrive-fw: --param '%s': no parameter of that name (NAME=VALUE; see "
-                          "--params-markdown)\n", arg);
-    return -1;
-}
-
-/* 0: run; 1: exit 0 (help, markdown); -1: usage error. */
-static int parse_options(int argc, char **argv, options_t *o)
-{
-    static const struct option LONG_OPTS[] = {
-        {"bus", required_argument, NULL, 'b'},          {"heartbeat-ms", required_argument, NULL, 'h'},
-        {"heartbeat-timeout-ms", required_argument, NULL, 't'}, {"auto-start", no_argument, NULL, 'a'},
-        {"params-markdown", no_argument, NULL, 'm'},    {"help", no_argument, NULL, 'H'},
-        {"param", required_argument, NULL, 'p'},
-        {NULL, 0, NULL, 0}};
-    for (int guard = 0; guard < argc + 1; ++guard) {
-        const int c = getopt_long(argc, argv, "", LONG_OPTS, NULL);
-        switch (c) {
-        case -1: return (optind == argc) ? 0 : -1;
-        case 'b': o->bus_spec = optarg; break;
-        case 'h': o->heartbeat_ms = optarg; break;
-        case 't': o->heartbeat_timeout_ms = optarg; break;
-        case 'a': o->auto_start = 1; break;
-        case 'p':
-            if (o->n_param >= MAX_PARAM_OPTS) {
-                (void)fprintf(stderr, "microdrive-fw: more than %d --param\n", MAX_PARAM_OPTS);
-                return -1;
-            }
-            o->param[o->n_param++] = optarg;
-            break;
-        case 'm': print_params_markdown(); return 1;
-        case 'H': usage(stdout); return 1;
-        default: return -1;
-        }
-    }
-    return -1;
-}
-
-static int configure(md_node_t *node, const options_t *o)
-{
-    if (o->heartbeat_ms != NULL &&
-        set_param(node, md_params_def(MD_P_HEARTBEAT_PERIOD_MS)->index, o->heartbeat_ms, "--heartbeat-ms") != 0) {
-        return -1;
-    }
-    if (o->heartbeat_timeout_ms != NULL &&
-        set_param(node, md_params_def(MD_P_HEARTBEAT_TIMEOUT_MS)->index, o->heartbeat_timeout_ms,
-                  "--heartbeat-timeout-ms") != 0) {
-        return -1;
-    }
-    if (o->auto_start != 0 && set_param(node, md_params_def(MD_P_AUTO_START)->index, "1", "--auto-start") != 0) {
-        return -1;
-    }
-    for (int i = 0; i < o->n_param && i < MAX_PARAM_OPTS; ++i) {
-        if (set_named_param(node, o->param[i]) != 0) {
-            return -1;
-        }
-    }
-    return 0;
 }
 
 static void install_signals(void)
@@ -285,16 +182,30 @@ int main(int argc, char **argv)
     md_controller_t *ctl = md_controller_instance(); /* the controller's whole state: static, no heap */
     md_node_t *node = md_controller_node(ctl);
     static posix_port_ctx_t port_ctx;
-    static options_t opt = {.bus_spec = "auto"}; /* the rest: none given */
-    const int parsed = parse_options(argc, argv, &opt);
-    if (parsed != 0) {
-        if (parsed < 0) {
-            usage(stderr);
+    static fw_cli_t opt;
+    char msg[256];
+    const fw_cli_result_t parsed = fw_cli_parse(argc, argv, &opt, msg, sizeof msg);
+    if (parsed == FW_CLI_HELP) {
+        usage(stdout);
+        return 0;
+    }
+    if (parsed == FW_CLI_MARKDOWN) {
+        print_params_markdown();
+        return 0;
+    }
+    if (parsed != FW_CLI_RUN) {
+        if (msg[0] != '\0') {
+            (void)fprintf(stderr, "microdrive-fw: %s\n", msg);
         }
-        return parsed < 0 ? 2 : 0;
+        usage(stderr);
+        return 2;
     }
     const md_port_t port = {port_send, port_now_us, &port_ctx};
-    if (md_controller_init(ctl, &port, mono_us()) != MD_OK || configure(node, &opt) != 0) {
+    if (md_controller_init(ctl, &port, mono_us()) != MD_OK) {
+        return 2;
+    }
+    if (fw_cli_configure(&node->params, &opt, msg, sizeof msg) != 0) {
+        (void)fprintf(stderr, "microdrive-fw: %s\n", msg);
         return 2;
     }
     char why[160];
