@@ -13,6 +13,13 @@ fail() { echo "FAIL: $*" >&2; exit 1; }
 
 "$SIM" "$SCEN" "$W/rec" --seed 7 --intervals 4 --interval-s 4 > /dev/null
 
+# sim-export refuses counts strtoul would wrap, and says which
+for bad in "--intervals -1" "--intervals 0" "--intervals 4294967296" "--seed -3" "--interval-s inf"; do
+    # shellcheck disable=SC2086
+    if "$SIM" "$SCEN" "$W/never" $bad 2> "$W/msg"; then fail "sim-export accepted $bad"; fi
+    grep -q -- "sim-export: $bad: not a valid value" "$W/msg" || fail "sim-export $bad: message"
+done
+
 for t in mhtc map-nn ml-nn gnn; do
     "$REPLAY" --recording "$W/rec/recording.json" --out "$W/out-$t" --tracker "$t" 2> "$W/err-$t"
     head -1 "$W/out-$t/labels.csv" | grep -qx 'sample_index,interval,cluster,track_id' || fail "$t: labels header"
