@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <getopt.h>
 #include <stdio.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -44,7 +45,8 @@ static int set_param(md_params_t *p, uint16_t index, const char *text, const cha
 static int set_named_param(md_params_t *p, const char *arg, char *msg, size_t msglen)
 {
     const char *eq = strchr(arg, '=');
-    const size_t len = (eq == NULL) ? 0u : (size_t)(eq - arg);
+    const ptrdiff_t name_len = (eq == NULL) ? 0 : eq - arg;
+    const size_t len = (size_t)name_len;
     for (size_t i = 0u; i < md_params_count() && len > 0u; ++i) {
         const md_param_def_t *d = md_params_def(i);
         if (strlen(d->name) == len && strncmp(d->name, arg, len) == 0) {
