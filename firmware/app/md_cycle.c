@@ -232,6 +232,12 @@ static void end_cycle(md_cycle_t *c, md_node_t *node)
     c->active = (uint8_t)((c->active + 1u) % MD_ELECTRODES); /* round robin */
 }
 
+/* The platform's work counter (0 where it has none): the cycle's cost. */
+static uint64_t work_now(const md_node_t *node)
+{
+    return (node->port.work_now != NULL) ? node->port.work_now(node->port.ctx) : 0u;
+}
+
 static void settle(md_cycle_t *c, md_node_t *node, uint64_t now_us)
 {
     c->el[c->active].phase = MD_CYC_SETTLING;
@@ -279,6 +285,8 @@ static void start_recording(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     el->rec_bad = false;
     el->rec_status = MD_OK;
     el->rec_clock_seen = false;
+    el->cost_detect = 0u;
+    el->cost_process = 0u;
     el->rec_start_us = md_cycle_time_us(c, node, now_us);
     struct md_can_rec_req_t m;
     uint8_t buf[MD_CAN_REC_REQ_LENGTH];
@@ -296,7 +304,7 @@ static void start_recording(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     (void)md_tlm_cycle(node, c->active, el, MD_TLM_PHASE_REQUESTED, n);
 }
 
-static void on_rec_data(md_cycle_t *c, const md_frame_t *f, bool accepted)
+static void on_rec_data(md_cycle_t *c, const md_node_t *node, const md_frame_t *f, bool accepted)
 {
     md_electrode_t *el = &c->el[c->active];
     if (el->phase != MD_CYC_RECORDING || f->len < 1u || f->data[0] != c->active) {
@@ -313,7 +321,9 @@ static void on_rec_data(md_cycle_t *c, const md_frame_t *f, bool accepted)
         x[i] = (int16_t)u; /* DBC: little-endian int16 at bit 32 + 16 i */
     }
     if (el->rec_status == MD_OK) {
+        const uint64_t w0 = work_now(node);
         el->rec_status = md_process_push(&c->ws, x, count);
+        el->cost_detect += work_now(node) - w0;
     }
     el->rec_samples += count;
 }
@@ -428,6 +438,7 @@ static double guard(md_electrode_t *el, const md_node_t *node, const md_workspac
 
 static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
 {
+    const uint64_t w0 = work_now(node);
     md_electrode_t *el = &c->el[c->active];
     el->flags = c->lockstep ? MD_TLM_F_LOCKSTEP : 0u;
     el->flags |= (el->last_move == MD_SERVO_R_CONVERGED) ? MD_TLM_F_LAST_MOVE_OK : 0u;
@@ -440,6 +451,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         st = md_process_interval(&c->ws, el, duration_s, md_params_get(&node->params, MD_P_MIN_RATE_HZ), &po);
     }
     if (st != MD_OK) {
+        el->cost_process = work_now(node) - w0;
         skip_cycle(c, node, st, now_us); /* tracks and SFSM untouched */
         return;
     }
@@ -466,6 +478,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         el->flags |= move ? MD_TLM_F_MOVE : MD_TLM_F_INHIBITED;
         el->inhibited += move ? 0u : 1u;
     }
+    el->cost_process = work_now(node) - w0;
     (void)md_tlm_cycle(node, c->active, el, MD_TLM_PHASE_PROCESSED, el->rec_samples);
     (void)md_tlm_status(node, c->active, el, po.n_spikes);
     (void)md_tlm_interval(node, c->active, el, &c->ws);
@@ -587,7 +600,7 @@ void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool
         }
     }
     if (f->id == MD_CAN_REC_DATA_FRAME_ID && (f->flags & MD_FRAME_FLAG_EXT) == 0u) {
-        on_rec_data(c, f, accepted);
+        on_rec_data(c, node, f, accepted);
         return;
     }
     if (!accepted) {

@@ -104,6 +104,8 @@ typedef struct {
     uint32_t dominant;          ///< dominant track id
     double snr, iqm;            ///< of the dominant track
     uint32_t flags;             ///< MD_TLM_F_* of the last cycle
+    uint64_t cost_detect;       ///< work (md_port_t work_now units) of this interval's detection (REC_DATA)
+    uint64_t cost_process;      ///< work of processing, scoring and deciding the last interval
     md_servo_result_t last_move;
     /* counters */
     uint32_t cycles, skipped, rec_failed, moves, moves_failed, inhibited, timeouts, guard_limited;

@@ -1,6 +1,7 @@
 /// @file md_port.h
 /// What the controller application needs from its platform, and nothing more
-/// (libcanard style): send a frame, read a monotonic clock. Frames are pushed
+/// (libcanard style): send a frame, read a monotonic clock (and, where the
+/// platform can count it, the CPU work done). Frames are pushed
 /// into the application by the platform's loop; the application never owns a
 /// thread, a socket or a timer.
 #ifndef MD_PORT_H
@@ -18,6 +19,12 @@ typedef struct {
     /// Monotonic microseconds since an arbitrary origin.
     uint64_t (*now_us)(void *ctx);
     void *ctx;
+    /// Optional (NULL: not measured): a monotonic count of the work the CPU
+    /// did for the application, in instructions (Cortex-M7 under QEMU
+    /// -icount) or CPU cycles (a board's cycle counter), with the time spent
+    /// in the platform's own interrupts left out. The electrode cycle reports
+    /// its cost in these units (TLM_STATUS CycleCost, ProcessCost).
+    uint64_t (*work_now)(void *ctx);
 } md_port_t;
 
 #endif
