@@ -34,6 +34,12 @@ typedef struct {
 
 typedef enum { SESSION_BUS_INPROC = 0, SESSION_BUS_SOCKET = 1 } session_bus_mode_t;
 
+/// Which controller runs the session.
+typedef enum {
+    SESSION_CTRL_HOST = 0,       ///< microdrive-fw (socket bus) or the controller in this process (inproc)
+    SESSION_CTRL_M7 = 1          ///< microdrive-fw-m7.elf under qemu-system-arm + mdcan bridge (docs/pil.md)
+} session_controller_t;
+
 typedef struct {
     const char *scenario;        ///< --scenario FILE
     uint64_t seed;               ///< --seed N (default: the scenario's)
@@ -53,6 +59,11 @@ typedef struct {
     bool no_plots;               ///< --no-plots: no PNG files
     session_param_t params[SESSION_MAX_PARAMS];   ///< --param, in command-line order
     uint32_t n_params;
+    session_controller_t controller;   ///< --controller host|m7
+    const char *m7_image;        ///< --m7-image: the Cortex-M7 image (default: $MD_M7_IMAGE, else
+                                 ///< <bin-dir>/../../cortex-m7/bin/microdrive-fw-m7.elf)
+    const char *qemu;            ///< --qemu: qemu-system-arm (default: $MD_QEMU, else through PATH)
+    uint32_t icount_shift;       ///< --icount-shift N: QEMU -icount shift=N (default 1: 2 ns per instruction)
     bool help;
 } session_opts_t;
 

@@ -14,7 +14,8 @@ const char *session_cli_usage(void)
            "                          --out DIR [--cycles N | --duration-s S] [--idle-s S] [--pace FPS]\n"
            "                          [--bin-dir DIR] [--python PY] [--param NAME=VALUE]...\n"
            "                          [--no-score] [--no-lcm] [--no-plots] [--no-sample-log]\n"
-           "                          [--quiet] [--help]\n"
+           "                          [--controller host|m7] [--m7-image ELF] [--qemu PATH]\n"
+           "                          [--icount-shift N] [--quiet] [--help]\n"
            "  --scenario FILE   simulator scenario (scenarios/*.yaml)\n"
            "  --seed N          seed of every random stream (default: the scenario's)\n"
            "  --bus SPEC        inproc: simulator + controller in this process, virtual clock, as fast\n"
@@ -38,6 +39,14 @@ const char *session_cli_usage(void)
            "                    ranges: microdrive-fw --params-markdown), e.g. --param tracker=1;\n"
            "                    in-process applied to the controller, on a socket bus passed to\n"
            "                    microdrive-fw --param\n"
+           "  --controller C    host (default): microdrive-fw, or the controller in this process with\n"
+           "                    inproc; m7: the Cortex-M7 image under qemu-system-arm -M mps2-an500\n"
+           "                    -icount shift=N, its frames over the board's UART to an mdcan bridge on\n"
+           "                    the bus (processor in the loop, docs/pil.md; needs a socket bus)\n"
+           "  --m7-image ELF    the image (default: $MD_M7_IMAGE, else\n"
+           "                    <bin-dir>/../../cortex-m7/bin/microdrive-fw-m7.elf)\n"
+           "  --qemu PATH       qemu-system-arm to use (default: $MD_QEMU, else through PATH)\n"
+           "  --icount-shift N  virtual time of 2^N ns per instruction (default 1: ~500 MHz)\n"
            "  --no-score        no report.json\n"
            "  --no-lcm          no session.lcmlog (md-lcm-bridge --write-log over candump.log and\n"
            "                    truth.jsonl); implies --no-plots\n"
@@ -163,6 +172,23 @@ static int cli_value(session_opts_t *o, const char *opt, const char *val, char *
         o->python = val;
     } else if (strcmp(opt, "--param") == 0) {
         return cli_param(o, val, msg, msglen);
+    } else if (strcmp(opt, "--controller") == 0) {
+        if (strcmp(val, "host") == 0) {
+            o->controller = SESSION_CTRL_HOST;
+        } else if (strcmp(val, "m7") == 0) {
+            o->controller = SESSION_CTRL_M7;
+        } else {
+            goto bad;
+        }
+    } else if (strcmp(opt, "--m7-image") == 0) {
+        o->m7_image = val;
+    } else if (strcmp(opt, "--qemu") == 0) {
+        o->qemu = val;
+    } else if (strcmp(opt, "--icount-shift") == 0) {
+        if (parse_u64(val, &u) != 0 || u > 10u) {
+            goto bad;
+        }
+        o->icount_shift = (uint32_t)u;
     } else {
         (void)snprintf(msg, msglen, "unknown option '%s'", opt);
         return -1;
@@ -180,6 +206,7 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     o->duration_s = -1.0;
     o->idle_s = 30.0;
     o->pace_fps = 10000u;
+    o->icount_shift = 1u;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
@@ -204,6 +231,11 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     }
     if (o->scenario == NULL || o->out == NULL) {
         (void)snprintf(msg, msglen, "--scenario and --out are required");
+        return -1;
+    }
+    if (o->controller == SESSION_CTRL_M7 && (strcmp(o->bus, "inproc") == 0 || strncmp(o->bus, "inproc:", 7) == 0)) {
+        (void)snprintf(msg, msglen, "--controller m7 needs a socket bus (udp, vcan0, auto): QEMU and the bridge are "
+                                    "processes");
         return -1;
     }
     if (o->cycles > 0u && o->duration_s > 0.0) {
