@@ -34,6 +34,11 @@ typedef struct {
 
 typedef enum { SESSION_BUS_INPROC = 0, SESSION_BUS_SOCKET = 1 } session_bus_mode_t;
 
+/// The simulator's frame rate cap with --controller m7 unless --pace is given:
+/// below what the emulated UARTs carry on a loaded 2-core machine (docs/pil.md),
+/// so frames do not queue up in the bridge ahead of the plant's heartbeats.
+#define SESSION_M7_PACE_FPS 2000u
+
 /// Which controller runs the session.
 typedef enum {
     SESSION_CTRL_HOST = 0,       ///< microdrive-fw (socket bus) or the controller in this process (inproc)
@@ -52,6 +57,7 @@ typedef struct {
     const char *bin_dir;         ///< --bin-dir: microdrive-sim/-fw (default: next to this program)
     const char *python;          ///< --python: interpreter for the scorer
     uint32_t pace_fps;           ///< --pace: microdrive-sim's frame rate cap on a socket bus
+                                 ///< (default 10000; with --controller m7 SESSION_M7_PACE_FPS)
     bool no_score;               ///< --no-score: leave report.json out
     bool quiet;                  ///< --quiet: no progress lines
     bool no_sample_log;          ///< --no-sample-log: REC_DATA frames stay out of the log

@@ -31,7 +31,8 @@ const char *session_cli_usage(void)
            "                    seconds in-process, wall seconds otherwise; default 30)\n"
            "  --pace FPS        socket bus: microdrive-sim sends at most FPS frames per wall second after\n"
            "                    a burst, so that the controller and the recorder lose none (default\n"
-           "                    10000; 0 = no cap); changes when frames go out, never what they are\n"
+           "                    10000, 2000 with --controller m7; 0 = no cap); changes when frames go\n"
+           "                    out, never what they are\n"
            "  --bin-dir DIR     where microdrive-sim and microdrive-fw are (default: next to this program)\n"
            "  --python PY       interpreter for tools/session/score.py (default: $MD_PYTHON, the\n"
            "                    project venv, python3)\n"
@@ -134,7 +135,7 @@ int session_apply_params(md_params_t *p, const session_opts_t *o, char *msg, siz
     return 0;
 }
 
-static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen)
+static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen, bool *pace_given)
 {
     uint64_t u = 0u;
     if (strcmp(opt, "--scenario") == 0) {
@@ -166,6 +167,7 @@ static int cli_value(session_opts_t *o, const char *opt, const char *val, char *
             goto bad;
         }
         o->pace_fps = (uint32_t)u;
+        *pace_given = true;
     } else if (strcmp(opt, "--bin-dir") == 0) {
         o->bin_dir = val;
     } else if (strcmp(opt, "--python") == 0) {
@@ -207,6 +209,7 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     o->idle_s = 30.0;
     o->pace_fps = 10000u;
     o->icount_shift = 1u;
+    bool pace_given = false;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
@@ -225,13 +228,16 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
         } else if (i + 1 >= argc || strncmp(a, "--", 2) != 0) {
             (void)snprintf(msg, msglen, "'%s' needs a value or is not an option", a);
             return -1;
-        } else if (cli_value(o, a, argv[++i], msg, msglen) != 0) {
+        } else if (cli_value(o, a, argv[++i], msg, msglen, &pace_given) != 0) {
             return -1;
         }
     }
     if (o->scenario == NULL || o->out == NULL) {
         (void)snprintf(msg, msglen, "--scenario and --out are required");
         return -1;
+    }
+    if (o->controller == SESSION_CTRL_M7 && !pace_given) {
+        o->pace_fps = SESSION_M7_PACE_FPS;
     }
     if (o->controller == SESSION_CTRL_M7 && (strcmp(o->bus, "inproc") == 0 || strncmp(o->bus, "inproc:", 7) == 0)) {
         (void)snprintf(msg, msglen, "--controller m7 needs a socket bus (udp, vcan0, auto): QEMU and the bridge are "
