@@ -232,10 +232,24 @@ static void end_cycle(md_cycle_t *c, md_node_t *node)
     c->active = (uint8_t)((c->active + 1u) % MD_ELECTRODES); /* round robin */
 }
 
-/* The platform's work counter (0 where it has none): the cycle's cost. */
-static uint64_t work_now(const md_node_t *node)
+/* The platform's work counter (0 where it has none) at the start of a
+ * stretch of measured work (the cycle's cost). */
+static uint64_t work_begin(const md_node_t *node)
 {
+    if (node->port.work_section != NULL) {
+        node->port.work_section(node->port.ctx, true);
+    }
     return (node->port.work_now != NULL) ? node->port.work_now(node->port.ctx) : 0u;
+}
+
+/* The work done since work_begin returned w0. */
+static uint64_t work_end(const md_node_t *node, uint64_t w0)
+{
+    const uint64_t w1 = (node->port.work_now != NULL) ? node->port.work_now(node->port.ctx) : 0u;
+    if (node->port.work_section != NULL) {
+        node->port.work_section(node->port.ctx, false);
+    }
+    return w1 - w0;
 }
 
 static void settle(md_cycle_t *c, md_node_t *node, uint64_t now_us)
@@ -321,9 +335,9 @@ static void on_rec_data(md_cycle_t *c, const md_node_t *node, const md_frame_t *
         x[i] = (int16_t)u; /* DBC: little-endian int16 at bit 32 + 16 i */
     }
     if (el->rec_status == MD_OK) {
-        const uint64_t w0 = work_now(node);
+        const uint64_t w0 = work_begin(node);
         el->rec_status = md_process_push(&c->ws, x, count);
-        el->cost_detect += work_now(node) - w0;
+        el->cost_detect += work_end(node, w0);
     }
     el->rec_samples += count;
 }
@@ -438,7 +452,7 @@ static double guard(md_electrode_t *el, const md_node_t *node, const md_workspac
 
 static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
 {
-    const uint64_t w0 = work_now(node);
+    const uint64_t w0 = work_begin(node);
     md_electrode_t *el = &c->el[c->active];
     el->flags = c->lockstep ? MD_TLM_F_LOCKSTEP : 0u;
     el->flags |= (el->last_move == MD_SERVO_R_CONVERGED) ? MD_TLM_F_LAST_MOVE_OK : 0u;
@@ -451,7 +465,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         st = md_process_interval(&c->ws, el, duration_s, md_params_get(&node->params, MD_P_MIN_RATE_HZ), &po);
     }
     if (st != MD_OK) {
-        el->cost_process = work_now(node) - w0;
+        el->cost_process = work_end(node, w0);
         skip_cycle(c, node, st, now_us); /* tracks and SFSM untouched */
         return;
     }
@@ -478,7 +492,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         el->flags |= move ? MD_TLM_F_MOVE : MD_TLM_F_INHIBITED;
         el->inhibited += move ? 0u : 1u;
     }
-    el->cost_process = work_now(node) - w0;
+    el->cost_process = work_end(node, w0);
     (void)md_tlm_cycle(node, c->active, el, MD_TLM_PHASE_PROCESSED, el->rec_samples);
     (void)md_tlm_status(node, c->active, el, po.n_spikes);
     (void)md_tlm_interval(node, c->active, el, &c->ws);

@@ -7,6 +7,7 @@
 #ifndef MD_PORT_H
 #define MD_PORT_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "common/md_status.h"
@@ -25,6 +26,11 @@ typedef struct {
     /// in the platform's own interrupts left out. The electrode cycle reports
     /// its cost in these units (TLM_STATUS CycleCost, ProcessCost).
     uint64_t (*work_now)(void *ctx);
+    /// Optional (NULL: nothing to do): called with enter = true before and
+    /// enter = false after each stretch of measured work, so that a platform
+    /// can hold back its own interrupts meanwhile (the Cortex-M7 port masks
+    /// its UART receive interrupts, which then neither count nor interleave).
+    void (*work_section)(void *ctx, bool enter);
 } md_port_t;
 
 #endif

@@ -278,7 +278,7 @@ static void boot(void)
     P.rng = 7u;
     P.pos_um = 1000.0;
     P.min_pos = P.max_pos = P.pos_um;
-    const md_port_t port = {port_send, port_now, NULL, NULL};
+    const md_port_t port = {port_send, port_now, NULL, NULL, NULL};
     md_controller_t *c = md_controller_instance();
     TEST_ASSERT_EQUAL_INT(MD_OK, md_controller_init(c, &port, 0u));
     md_node_t *n = md_controller_node(c);

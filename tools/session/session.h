@@ -39,6 +39,13 @@ typedef enum { SESSION_BUS_INPROC = 0, SESSION_BUS_SOCKET = 1 } session_bus_mode
 /// so frames do not queue up in the bridge ahead of the plant's heartbeats.
 #define SESSION_M7_PACE_FPS 2000u
 
+/// heartbeat_timeout_ms with --controller m7 unless --param sets it: the
+/// plant's heartbeats (wall clock) reach the emulated controller through the
+/// bridge's queue and the UARTs, whose latency on a loaded machine exceeds the
+/// default 500 ms; lost heartbeats would stop motion and change the session
+/// (docs/pil.md). Decisions do not depend on the value while none is lost.
+#define SESSION_M7_HEARTBEAT_TIMEOUT "heartbeat_timeout_ms=10000"
+
 /// Which controller runs the session.
 typedef enum {
     SESSION_CTRL_HOST = 0,       ///< microdrive-fw (socket bus) or the controller in this process (inproc)

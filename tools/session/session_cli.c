@@ -48,6 +48,7 @@ const char *session_cli_usage(void)
            "                    <bin-dir>/../../cortex-m7/bin/microdrive-fw-m7.elf)\n"
            "  --qemu PATH       qemu-system-arm to use (default: $MD_QEMU, else through PATH)\n"
            "  --icount-shift N  virtual time of 2^N ns per instruction (default 1: ~500 MHz)\n"
+           "                    (m7 also sets heartbeat_timeout_ms=10000 unless --param sets it)\n"
            "  --no-score        no report.json\n"
            "  --no-lcm          no session.lcmlog (md-lcm-bridge --write-log over candump.log and\n"
            "                    truth.jsonl); implies --no-plots\n"
@@ -238,6 +239,16 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     }
     if (o->controller == SESSION_CTRL_M7 && !pace_given) {
         o->pace_fps = SESSION_M7_PACE_FPS;
+    }
+    if (o->controller == SESSION_CTRL_M7) {
+        bool set = false;
+        for (uint32_t i = 0u; i < o->n_params; ++i) {
+            set = set || strncmp(o->params[i].arg, "heartbeat_timeout_ms=", 21) == 0;
+        }
+        /* first, so that a later --param of the same name would still win */
+        if (!set && cli_param(o, SESSION_M7_HEARTBEAT_TIMEOUT, msg, msglen) != 0) {
+            return -1;
+        }
     }
     if (o->controller == SESSION_CTRL_M7 && (strcmp(o->bus, "inproc") == 0 || strncmp(o->bus, "inproc:", 7) == 0)) {
         (void)snprintf(msg, msglen, "--controller m7 needs a socket bus (udp, vcan0, auto): QEMU and the bridge are "

@@ -32,6 +32,8 @@ _Static_assert(MD_CAN_UART_STRIPES == 5u, "the tables above list the AN500's fiv
 
 /* NVIC (ARMv7-M ARM, B3.4). */
 #define NVIC_ISER0 (*(volatile uint32_t *)0xE000E100u)
+#define NVIC_ICER0 (*(volatile uint32_t *)0xE000E180u)
+#define UART_RX_IRQ_MASK ((1u << 0) | (1u << 2) | (1u << 4) | (1u << 18) | (1u << 20))
 
 /* Polls of TXFULL per byte before a frame is abandoned (tens of ms of
  * virtual time: far beyond the host bridge's latency). */
@@ -79,6 +81,16 @@ void md_can_uart_init(void)
         UART_INTCLEAR(b) = 0xFu;
         UART_CTRL(b) = CTRL_TX_EN | CTRL_RX_EN | CTRL_RX_INT_EN;
         NVIC_ISER0 = 1u << uart_rx_irq[j];
+    }
+}
+
+void md_can_uart_rx_hold(bool hold)
+{
+    if (hold) {
+        NVIC_ICER0 = UART_RX_IRQ_MASK;
+        __asm__ volatile("dsb\n isb" ::: "memory");
+    } else {
+        NVIC_ISER0 = UART_RX_IRQ_MASK;
     }
 }
 

@@ -60,6 +60,11 @@ bool md_can_uart_receive(md_frame_t *out);
 /// not sleep).
 bool md_can_uart_rx_pending(void);
 
+/// Holds back (hold = true) or lets run (false) the UART receive interrupts:
+/// bytes arriving meanwhile wait in the UARTs (flow control), nothing is
+/// lost. Around the controller's measured work (md_port_t work_section).
+void md_can_uart_rx_hold(bool hold);
+
 /// The link's counters.
 const md_can_uart_stats_t *md_can_uart_stats(void);
 

@@ -78,12 +78,12 @@ __attribute__((section(".isr_vector"), used)) static const md_m7_vector_table_t 
         [11] = default_handler, /* DebugMonitor */
         [13] = PendSV_Handler,
         [14] = SysTick_Handler,
-        /* external interrupts 0..31; the UART RX lines 0, 2, 4, 18, 20 */
-        [15 + 0] = UART0RX_IRQHandler, default_handler,
-        [15 + 2] = UART1RX_IRQHandler, default_handler,
-        [15 + 4] = UART2RX_IRQHandler, DH4, DH4, DH4, default_handler,
-        [15 + 18] = UART3RX_IRQHandler, default_handler,
-        [15 + 20] = UART4RX_IRQHandler, DH4, DH4, default_handler, default_handler, default_handler,
+        /* external interrupts 0..31 (index 15 + n); UART RX lines 0, 2, 4, 18, 20 */
+        [15] = UART0RX_IRQHandler, default_handler,
+        [17] = UART1RX_IRQHandler, default_handler,
+        [19] = UART2RX_IRQHandler, DH4, DH4, DH4, default_handler,
+        [33] = UART3RX_IRQHandler, default_handler,
+        [35] = UART4RX_IRQHandler, DH4, DH4, default_handler, default_handler, default_handler,
     },
 };
 _Static_assert(MD_M7_EXT_IRQS == 32u, "the initializer above lists 32 external vectors");

@@ -13,9 +13,10 @@
 #define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
 #define SYST_CSR_ENABLE_TICKINT_CPUCLK 0x7u
 #define SYST_CSR_COUNTFLAG (1u << 16)
+#define SCB_ICSR (*(volatile uint32_t *)0xE000ED04u)
+#define SCB_ICSR_PENDSTSET (1u << 26)
 
 #define TICKS_PER_PERIOD (MD_M7_SYSCLK_HZ / MD_M7_TICK_HZ)
-#define US_PER_PERIOD (1000000u / MD_M7_TICK_HZ)
 #define CLOCK_READ_TRIES 4u
 _Static_assert(TICKS_PER_PERIOD <= 0x1000000u, "SysTick reload is 24 bits");
 _Static_assert(MD_M7_SYSCLK_HZ % 1000000u == 0u, "whole ticks per microsecond");
@@ -39,12 +40,21 @@ void md_port_m7_clock_start(void)
 
 uint64_t md_port_m7_ticks(void)
 {
+    /* The 64-bit period count is not read atomically, and the down-counter
+     * may have wrapped with its interrupt still pending (not yet counted):
+     * retry until the period count is stable, and count a pending wrap
+     * (PENDSTSET) with the counter read after it was seen. */
     uint64_t periods = 0u;
     uint32_t elapsed = 0u;
     for (uint32_t i = 0u; i < CLOCK_READ_TRIES; ++i) {
         periods = systick_periods;
-        elapsed = (TICKS_PER_PERIOD - 1u) - SYST_CVR;
-        if (systick_periods == periods) {
+        uint32_t cvr = SYST_CVR;
+        if ((SCB_ICSR & SCB_ICSR_PENDSTSET) != 0u) {
+            cvr = SYST_CVR; /* after the wrap */
+            periods += 1u;
+        }
+        elapsed = (TICKS_PER_PERIOD - 1u) - cvr;
+        if (systick_periods + ((SCB_ICSR & SCB_ICSR_PENDSTSET) != 0u ? 1u : 0u) == periods) {
             break;
         }
     }
@@ -53,19 +63,7 @@ uint64_t md_port_m7_ticks(void)
 
 uint64_t md_port_m7_now_us(void)
 {
-    /* The 64-bit count is not read atomically and the down-counter may wrap
-     * between the two reads: retry until the period count is stable. */
-    uint64_t periods = 0u;
-    uint32_t elapsed_ticks = 0u;
-    for (uint32_t i = 0u; i < CLOCK_READ_TRIES; ++i) {
-        periods = systick_periods;
-        const uint32_t cvr = SYST_CVR;
-        elapsed_ticks = (TICKS_PER_PERIOD - 1u) - cvr;
-        if (systick_periods == periods) {
-            break;
-        }
-    }
-    return periods * US_PER_PERIOD + elapsed_ticks / (MD_M7_SYSCLK_HZ / 1000000u);
+    return md_port_m7_ticks() / (MD_M7_SYSCLK_HZ / 1000000u);
 }
 
 static md_status_t port_send(void *ctx, const md_frame_t *frame)
@@ -118,6 +116,12 @@ static uint64_t calib_loop_ticks(void)
     return md_port_m7_ticks() - t0;
 }
 
+static void port_work_section(void *ctx, bool enter)
+{
+    (void)ctx;
+    md_can_uart_rx_hold(enter);
+}
+
 uint64_t md_port_m7_calibrate(md_port_m7_ctx_t *ctx)
 {
     if (ctx == NULL) {
@@ -147,6 +151,7 @@ md_status_t md_port_m7_init(md_port_t *port, md_port_m7_ctx_t *ctx)
     port->now_us = port_now_us;
     port->ctx = ctx;
     port->work_now = port_work_now;
+    port->work_section = port_work_section;
     md_can_uart_init();
     return MD_OK;
 }

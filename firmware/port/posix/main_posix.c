@@ -293,7 +293,7 @@ int main(int argc, char **argv)
         }
         return parsed < 0 ? 2 : 0;
     }
-    const md_port_t port = {port_send, port_now_us, &port_ctx, NULL}; /* no work counter on a host */
+    const md_port_t port = {port_send, port_now_us, &port_ctx, NULL, NULL}; /* no work counter on a host */
     if (md_controller_init(ctl, &port, mono_us()) != MD_OK || configure(node, &opt) != 0) {
         return 2;
     }
