@@ -6,7 +6,7 @@
 #   scripts/run-session.sh [--scenario FILE] [--seed N] [--seconds S | --cycles N]
 #                          [--bus auto|udp|vcan0|IFACE|inproc] [--out DIR]
 #                          [--build-dir DIR] [--idle-s S] [--param NAME=VALUE]...
-#                          [--no-lcm] [--no-plots]
+#                          [--no-lcm] [--no-plots] [--controller host|m7]
 #
 # --seconds S is simulated time (default: the scenario's duration_s). Builds
 # the release preset first when --build-dir has no binaries. Leaves in DIR:
@@ -15,6 +15,9 @@
 # tracks_pc.png waveforms.png status.png hypotheses.png truth.png, and
 # sim.log/fw.log for a socket bus. --param sets a controller parameter before
 # the start (e.g. tracker=1); --no-lcm/--no-plots leave the log/plots out.
+# --controller m7: the Cortex-M7 image under QEMU is the controller
+# (docs/pil.md; builds the cortex-m7 preset if its image is missing; needs a
+# socket bus: udp, vcan0 or auto).
 # Exit 0 when the session reached its goal, or ended idle with every node's
 # heartbeat seen, no node reported lost (EMCY 0x8130) and no frame rejected
 # (EMCY 0x8200); else 1 (also when the LCM log or the plots failed).
@@ -28,8 +31,9 @@ bus=auto
 out=""
 idle=20
 build="$root/build/release"
+controller=host
 
-usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'; }
 extra=()
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -43,6 +47,7 @@ while [ $# -gt 0 ]; do
         --idle-s) idle=$2; shift 2 ;;
         --param) extra+=(--param "$2"); shift 2 ;;
         --no-lcm|--no-plots) extra+=("$1"); shift ;;
+        --controller) extra+=(--controller "$2"); controller=$2; shift 2 ;;
         -h|--help) usage; exit 0 ;;
         *) echo "run-session: unknown option '$1' (see --help)" >&2; exit 2 ;;
     esac
@@ -56,6 +61,14 @@ if [ ! -x "$bin/microdrive-session" ] || [ ! -x "$bin/microdrive-fw" ] || [ ! -x
     bin="$root/build/release/bin"
 fi
 [ -x "$root/.venv/bin/python" ] || "$root/scripts/setup-venv.sh"
+if [ "$controller" = m7 ]; then
+    [ "$bus" != inproc ] || { echo "run-session: --controller m7 needs a socket bus (udp, vcan0, auto)" >&2; exit 2; }
+    if [ ! -f "$root/build/cortex-m7/bin/microdrive-fw-m7.elf" ]; then
+        echo "run-session: building the cortex-m7 preset into $root/build/cortex-m7" >&2
+        (cd "$root" && cmake --preset cortex-m7 >/dev/null && cmake --build --preset cortex-m7)
+    fi
+    extra+=(--m7-image "$root/build/cortex-m7/bin/microdrive-fw-m7.elf")
+fi
 
 out=${out:-"$root/out/session-$(date +%Y%m%d-%H%M%S)"}
 args=(--scenario "$scenario" --bus "$bus" --out "$out" --idle-s "$idle" "${goal[@]}" "${extra[@]}")
