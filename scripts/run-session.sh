@@ -29,7 +29,7 @@ seed=""
 goal=()
 bus=auto
 out=""
-idle=20
+idle=""   # default 20 s (300 s with --controller m7: the emulated link is slow)
 build="$root/build/release"
 controller=host
 
@@ -71,6 +71,7 @@ if [ "$controller" = m7 ]; then
 fi
 
 out=${out:-"$root/out/session-$(date +%Y%m%d-%H%M%S)"}
+[ -n "$idle" ] || { [ "$controller" = m7 ] && idle=300 || idle=20; }
 args=(--scenario "$scenario" --bus "$bus" --out "$out" --idle-s "$idle" "${goal[@]}" "${extra[@]}")
 [ -n "$seed" ] && args+=(--seed "$seed")
 set +e

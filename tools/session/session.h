@@ -39,6 +39,12 @@ typedef enum { SESSION_BUS_INPROC = 0, SESSION_BUS_SOCKET = 1 } session_bus_mode
 /// so frames do not queue up in the bridge ahead of the plant's heartbeats.
 #define SESSION_M7_PACE_FPS 2000u
 
+/// --idle-s with --controller m7 unless given: a 10 s interval takes the
+/// emulated UARTs tens of seconds on a loaded machine, with no frame on the
+/// bus meanwhile (the simulator has sent it all; it waits in the bridge and
+/// the sockets), which is not a controller waiting for nothing.
+#define SESSION_M7_IDLE_S 300.0
+
 /// heartbeat_timeout_ms with --controller m7 unless --param sets it: the
 /// plant's heartbeats (wall clock) reach the emulated controller through the
 /// bridge's queue and the UARTs, whose latency on a loaded machine exceeds the

@@ -28,7 +28,8 @@ const char *session_cli_usage(void)
            "  --duration-s S    end when simulated time passed S and every interval begun before\n"
            "                    S is reported (default: the scenario's duration_s)\n"
            "  --idle-s S        end early when nothing but heartbeats moved for S seconds (virtual\n"
-           "                    seconds in-process, wall seconds otherwise; default 30)\n"
+           "                    seconds in-process, wall seconds otherwise; default 30, 300 with\n"
+           "                    --controller m7)\n"
            "  --pace FPS        socket bus: microdrive-sim sends at most FPS frames per wall second after\n"
            "                    a burst, so that the controller and the recorder lose none (default\n"
            "                    10000, 2000 with --controller m7; 0 = no cap); changes when frames go\n"
@@ -136,7 +137,8 @@ int session_apply_params(md_params_t *p, const session_opts_t *o, char *msg, siz
     return 0;
 }
 
-static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen, bool *pace_given)
+static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen, bool *pace_given,
+                     bool *idle_given)
 {
     uint64_t u = 0u;
     if (strcmp(opt, "--scenario") == 0) {
@@ -163,6 +165,7 @@ static int cli_value(session_opts_t *o, const char *opt, const char *val, char *
         if (parse_double(val, &o->idle_s) != 0 || !(o->idle_s > 0.0)) {
             goto bad;
         }
+        *idle_given = true;
     } else if (strcmp(opt, "--pace") == 0) {
         if (parse_u64(val, &u) != 0 || u > 10000000u) {
             goto bad;
@@ -211,6 +214,7 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     o->pace_fps = 10000u;
     o->icount_shift = 1u;
     bool pace_given = false;
+    bool idle_given = false;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
@@ -229,7 +233,7 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
         } else if (i + 1 >= argc || strncmp(a, "--", 2) != 0) {
             (void)snprintf(msg, msglen, "'%s' needs a value or is not an option", a);
             return -1;
-        } else if (cli_value(o, a, argv[++i], msg, msglen, &pace_given) != 0) {
+        } else if (cli_value(o, a, argv[++i], msg, msglen, &pace_given, &idle_given) != 0) {
             return -1;
         }
     }
@@ -239,6 +243,9 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     }
     if (o->controller == SESSION_CTRL_M7 && !pace_given) {
         o->pace_fps = SESSION_M7_PACE_FPS;
+    }
+    if (o->controller == SESSION_CTRL_M7 && !idle_given) {
+        o->idle_s = SESSION_M7_IDLE_S;
     }
     if (o->controller == SESSION_CTRL_M7) {
         bool set = false;
