@@ -299,6 +299,7 @@ static void start_recording(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     el->rec_bad = false;
     el->rec_status = MD_OK;
     el->rec_clock_seen = false;
+    el->rec_end_ok = false;
     el->cost_detect = 0u;
     el->cost_process = 0u;
     el->rec_start_us = md_cycle_time_us(c, node, now_us);
@@ -355,7 +356,15 @@ static void on_rec_end(md_cycle_t *c, md_node_t *node, const md_frame_t *f)
         recording_failed(c, node);
         return;
     }
-    el->phase = MD_CYC_PROCESS;
+    /* In lockstep the batch ends with SIM_CLOCK(t + n/fs), right behind the
+     * REC_END; processing waits for it, so that what follows (the next
+     * REC_REQ when nothing moves) has the interval's end as its cycle time
+     * even when the link delivers the clock later than the REC_END. */
+    if (c->lockstep) {
+        el->rec_end_ok = true;
+    } else {
+        el->phase = MD_CYC_PROCESS;
+    }
 }
 
 /* ------------------------------------------------------------------ */
@@ -629,6 +638,10 @@ void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool
         if (c->lockstep) {
             el->rec_start_us = node->sim_time_us; /* the batch of the recording opens at its first sample */
         }
+    }
+    if (f->id == MD_CAN_SIM_CLOCK_FRAME_ID && el->phase == MD_CYC_RECORDING && el->rec_end_ok) {
+        el->rec_end_ok = false;
+        el->phase = MD_CYC_PROCESS; /* the recording's batch is closed */
     }
     if (f->id == MD_CAN_REC_END_FRAME_ID) {
         on_rec_end(c, node, f);

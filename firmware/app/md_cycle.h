@@ -94,6 +94,7 @@ typedef struct {
     md_status_t rec_status;     ///< first sp_push failure of this interval (MD_OK if none)
     uint64_t rec_start_us;      ///< cycle time of the interval's first sample
     bool rec_clock_seen;        ///< a SIM_CLOCK arrived since the REC_REQ (lockstep start time)
+    bool rec_end_ok;            ///< lockstep: a complete REC_END arrived, the batch's closing SIM_CLOCK not yet
     bool fe_info;               ///< FE_INFO received
     uint32_t sample_rate_hz;    ///< from FE_INFO
     double gain_uv;             ///< µV per ADC count, from FE_INFO
