@@ -10,7 +10,9 @@ and each electrode's "cost".
     compare_sessions.py DIR_A DIR_B [--cycles N] [--json OUT]
 
 The first differing electrode cycle is named with its interval (IntervalId,
-start time) and the decoded fields that differ. Only the cycles both sessions
+start time) and the decoded fields that differ; then every differing cycle is
+counted by frame and field, so that a difference confined to one field shows
+as such. Only the cycles both sessions
 completed are compared (--cycles N: the first N). Also printed, not compared:
 the controller's heartbeat-loss EMCYs (0x8130) in each session, the usual
 cause of a difference that is the link's and not the computation's.
@@ -107,6 +109,32 @@ def first_difference(db, a, b, info_a, cycles):
     return None
 
 
+def all_differences(db, a, b, cycles):
+    """(frame.field -> cycles in which it differs), differing cycles in total."""
+    fields, n_cycles = defaultdict(int), 0
+    for e in sorted(set(a) | set(b)):
+        ca, cb = a.get(e, [[]])[:-1], b.get(e, [[]])[:-1]
+        n = min(len(ca), len(cb)) if not cycles else min(len(ca), len(cb), cycles)
+        for k in range(n):
+            if ca[k] == cb[k]:
+                continue
+            n_cycles += 1
+            seen = set()
+            if len(ca[k]) != len(cb[k]):
+                seen.add("frame count")
+            for fa, fb in zip(ca[k], cb[k]):
+                if fa == fb:
+                    continue
+                if fa[0] != fb[0]:
+                    seen.add("frame order")
+                    continue
+                for name in decode_diff(db, fa[0], fa[1], fb[1]):
+                    seen.add(f"{PER_ELECTRODE.get(fa[0], hex(fa[0]))}.{name}")
+            for name in seen:
+                fields[name] += 1
+    return dict(fields), n_cycles
+
+
 def load_report(path):
     with open(path) as f:
         r = json.load(f)
@@ -136,7 +164,9 @@ def main(argv=None):
     diff = first_difference(db, fa, fb, info_a, args.cycles)
     n_steps = min(len(steps_a), len(steps_b))
     step_diff = next((i for i in range(n_steps) if steps_a[i] != steps_b[i]), None)
+    fields, n_diff = all_differences(db, fa, fb, args.cycles)
     verdict = {"cycles": {str(e): c for e, c in counts.items()}, "first_difference": diff,
+               "differing_cycles": n_diff, "differing_fields": fields,
                "sim_step_difference": step_diff, "heartbeat_lost_emcy": [lost_a, lost_b]}
     rep_same = None
     ra, rb = os.path.join(args.a, "report.json"), os.path.join(args.b, "report.json")
@@ -159,6 +189,7 @@ def main(argv=None):
                   f"{diff.get('fields', '')}")
         if step_diff is not None:
             print(f"compare_sessions: SIM_STEP #{step_diff} differs")
+        print(f"compare_sessions: {n_diff} cycles differ; by frame.field (cycles): {fields}")
     if rep_same is not None:
         print(f"compare_sessions: report.json {'identical' if rep_same else 'DIFFERENT'} apart from bus and cost")
         for line in verdict.get("report_lines", [])[:20]:
