@@ -7,6 +7,7 @@
 #                          [--bus auto|udp|vcan0|IFACE|inproc] [--out DIR]
 #                          [--build-dir DIR] [--idle-s S] [--param NAME=VALUE]...
 #                          [--no-lcm] [--no-plots] [--no-recording] [--candump-samples]
+#                          [--controller host|m7]
 #
 # --seconds S is simulated time (default: the scenario's duration_s). First
 # installs what is missing (Debian packages as root or through sudo, the
@@ -20,6 +21,9 @@
 # sim.log/fw.log for a socket bus. --param sets a controller parameter before
 # the start (e.g. tracker=1); --no-lcm/--no-plots/--no-recording leave the
 # log/plots/recording out; --candump-samples logs the samples in candump.log too.
+# --controller m7: the Cortex-M7 image under QEMU is the controller
+# (docs/pil.md; builds the cortex-m7 preset if its image is missing; needs a
+# socket bus: udp, vcan0 or auto).
 # Exit 0 when the session reached its goal, or ended idle with every node's
 # heartbeat seen, no node reported lost (EMCY 0x8130) and no frame rejected
 # (EMCY 0x8200); else 1 (also when the LCM log or the plots failed).
@@ -31,10 +35,11 @@ seed=""
 goal=()
 bus=auto
 out=""
-idle=20
+idle=""   # default 20 s (300 s with --controller m7: the emulated link is slow)
 build="$root/build/release"
+controller=host
 
-usage() { sed -n '2,25p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,29p' "$0" | sed 's/^# \{0,1\}//'; }
 extra=()
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -48,6 +53,7 @@ while [ $# -gt 0 ]; do
         --idle-s) idle=$2; shift 2 ;;
         --param) extra+=(--param "$2"); shift 2 ;;
         --no-lcm|--no-plots|--no-recording|--candump-samples) extra+=("$1"); shift ;;
+        --controller) extra+=(--controller "$2"); controller=$2; shift 2 ;;
         -h|--help) usage; exit 0 ;;
         *) echo "run-session: unknown option '$1' (see --help)" >&2; exit 2 ;;
     esac
@@ -66,8 +72,18 @@ if [ ! -x "$bin/microdrive-session" ] || [ ! -x "$bin/microdrive-fw" ] || [ ! -x
     (cd "$root" && cmake --preset release >/dev/null && cmake --build --preset release -j "$(nproc)")
     bin="$root/build/release/bin"
 fi
+if [ "$controller" = m7 ]; then
+    [ "$bus" != inproc ] || { echo "run-session: --controller m7 needs a socket bus (udp, vcan0, auto)" >&2; exit 2; }
+    md_deps_install run-session target || exit 1
+    if [ ! -f "$root/build/cortex-m7/bin/microdrive-fw-m7.elf" ]; then
+        echo "run-session: building the cortex-m7 preset into $root/build/cortex-m7" >&2
+        (cd "$root" && cmake --preset cortex-m7 >/dev/null && cmake --build --preset cortex-m7)
+    fi
+    extra+=(--m7-image "$root/build/cortex-m7/bin/microdrive-fw-m7.elf")
+fi
 
 out=${out:-"$root/out/session-$(date +%Y%m%d-%H%M%S)"}
+[ -n "$idle" ] || { [ "$controller" = m7 ] && idle=300 || idle=20; }
 args=(--scenario "$scenario" --bus "$bus" --out "$out" --idle-s "$idle" "${goal[@]}" "${extra[@]}")
 [ -n "$seed" ] && args+=(--seed "$seed")
 set +e

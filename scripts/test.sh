@@ -6,7 +6,9 @@
 #   2. host build (preset dev): unit, integration (private netns) and vcan (VM) tests
 #   3. sanitizers (preset dev-asan: ASan + UBSan): the unit tests again
 #   4. fuzzing (clang libFuzzer, ASan + UBSan): a short run of every target
-#   5. Cortex-M7 build (preset cortex-m7): the unit tests again, under QEMU
+#   5. Cortex-M7 build (preset cortex-m7): the unit tests again, under QEMU,
+#      and processor in the loop: the image under QEMU against the simulator
+#      (label pil of the dev build)
 # Options: --skip-target --skip-vcan --skip-asan --skip-fuzz (quick local runs;
 # CI runs everything). MD_FUZZ_SECONDS sets the fuzz time per target (20).
 set -euo pipefail
@@ -48,7 +50,7 @@ cmake --preset dev
 cmake --build --preset dev -j "$jobs"
 
 step "host tests: unit + integration"
-exclude="vcan"
+exclude="vcan|pil"   # pil needs the cortex-m7 image: stage 5
 ctest --preset dev -j "$jobs" -LE "$exclude"
 
 if [ "$skip_vcan" -eq 0 ]; then
@@ -73,6 +75,8 @@ if [ "$skip_target" -eq 0 ]; then
     cmake --preset cortex-m7
     cmake --build --preset cortex-m7 -j "$jobs"
     ctest --preset cortex-m7 -j "$jobs"
+    step "processor in the loop: the Cortex-M7 image under QEMU against the simulator (label pil)"
+    ctest --preset dev -L pil
 fi
 
 step "all test stages passed"

@@ -234,6 +234,26 @@ static void end_cycle(md_cycle_t *c, md_node_t *node)
     c->active = (uint8_t)((c->active + 1u) % MD_ELECTRODES); /* round robin */
 }
 
+/* The platform's work counter (0 where it has none) at the start of a
+ * stretch of measured work (the cycle's cost). */
+static uint64_t work_begin(const md_node_t *node)
+{
+    if (node->port.work_section != NULL) {
+        node->port.work_section(node->port.ctx, true);
+    }
+    return (node->port.work_now != NULL) ? node->port.work_now(node->port.ctx) : 0u;
+}
+
+/* The work done since work_begin returned w0. */
+static uint64_t work_end(const md_node_t *node, uint64_t w0)
+{
+    const uint64_t w1 = (node->port.work_now != NULL) ? node->port.work_now(node->port.ctx) : 0u;
+    if (node->port.work_section != NULL) {
+        node->port.work_section(node->port.ctx, false);
+    }
+    return w1 - w0;
+}
+
 static void settle(md_cycle_t *c, md_node_t *node, uint64_t now_us)
 {
     c->el[c->active].phase = MD_CYC_SETTLING;
@@ -281,6 +301,9 @@ static void start_recording(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     el->rec_bad = false;
     el->rec_status = MD_OK;
     el->rec_clock_seen = false;
+    el->rec_end_ok = false;
+    el->cost_detect = 0u;
+    el->cost_process = 0u;
     el->rec_start_us = md_cycle_time_us(c, node, now_us);
     struct md_can_rec_req_t m;
     uint8_t buf[MD_CAN_REC_REQ_LENGTH];
@@ -298,7 +321,7 @@ static void start_recording(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     (void)md_tlm_cycle(node, c->active, el, MD_TLM_PHASE_REQUESTED, n);
 }
 
-static void on_rec_data(md_cycle_t *c, const md_frame_t *f, bool accepted)
+static void on_rec_data(md_cycle_t *c, const md_node_t *node, const md_frame_t *f, bool accepted)
 {
     md_electrode_t *el = &c->el[c->active];
     if (el->phase != MD_CYC_RECORDING || f->len < 1u || f->data[0] != c->active) {
@@ -315,7 +338,9 @@ static void on_rec_data(md_cycle_t *c, const md_frame_t *f, bool accepted)
         x[i] = (int16_t)u; /* DBC: little-endian int16 at bit 32 + 16 i */
     }
     if (el->rec_status == MD_OK) {
+        const uint64_t w0 = work_begin(node);
         el->rec_status = md_process_push(&c->ws, x, count);
+        el->cost_detect += work_end(node, w0);
     }
     el->rec_samples += count;
 }
@@ -333,7 +358,15 @@ static void on_rec_end(md_cycle_t *c, md_node_t *node, const md_frame_t *f)
         recording_failed(c, node);
         return;
     }
-    el->phase = MD_CYC_PROCESS;
+    /* In lockstep the batch ends with SIM_CLOCK(t + n/fs), right behind the
+     * REC_END; processing waits for it, so that what follows (the next
+     * REC_REQ when nothing moves) has the interval's end as its cycle time
+     * even when the link delivers the clock later than the REC_END. */
+    if (c->lockstep) {
+        el->rec_end_ok = true;
+    } else {
+        el->phase = MD_CYC_PROCESS;
+    }
 }
 
 /* ------------------------------------------------------------------ */
@@ -430,6 +463,7 @@ static double guard(md_electrode_t *el, const md_node_t *node, const md_workspac
 
 static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
 {
+    const uint64_t w0 = work_begin(node);
     md_electrode_t *el = &c->el[c->active];
     el->flags = c->lockstep ? MD_TLM_F_LOCKSTEP : 0u;
     el->flags |= (el->last_move == MD_SERVO_R_CONVERGED) ? MD_TLM_F_LAST_MOVE_OK : 0u;
@@ -442,6 +476,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         st = md_process_interval(&c->ws, el, duration_s, md_params_get(&node->params, MD_P_MIN_RATE_HZ), &po);
     }
     if (st != MD_OK) {
+        el->cost_process = work_end(node, w0);
         skip_cycle(c, node, st, now_us); /* tracks and SFSM untouched */
         return;
     }
@@ -468,6 +503,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         el->flags |= move ? MD_TLM_F_MOVE : MD_TLM_F_INHIBITED;
         el->inhibited += move ? 0u : 1u;
     }
+    el->cost_process = work_end(node, w0);
     (void)md_tlm_cycle(node, c->active, el, MD_TLM_PHASE_PROCESSED, el->rec_samples);
     (void)md_tlm_status(node, c->active, el, po.n_spikes);
     (void)md_tlm_interval(node, c->active, el, &c->ws);
@@ -589,7 +625,7 @@ void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool
         }
     }
     if (f->id == MD_CAN_REC_DATA_FRAME_ID && (f->flags & MD_FRAME_FLAG_EXT) == 0u) {
-        on_rec_data(c, f, accepted);
+        on_rec_data(c, node, f, accepted);
         return;
     }
     if (!accepted) {
@@ -604,6 +640,10 @@ void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool
         if (c->lockstep) {
             el->rec_start_us = node->sim_time_us; /* the batch of the recording opens at its first sample */
         }
+    }
+    if (f->id == MD_CAN_SIM_CLOCK_FRAME_ID && el->phase == MD_CYC_RECORDING && el->rec_end_ok) {
+        el->rec_end_ok = false;
+        el->phase = MD_CYC_PROCESS; /* the recording's batch is closed */
     }
     if (f->id == MD_CAN_REC_END_FRAME_ID) {
         on_rec_end(c, node, f);

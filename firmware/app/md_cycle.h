@@ -94,6 +94,7 @@ typedef struct {
     md_status_t rec_status;     ///< first sp_push failure of this interval (MD_OK if none)
     uint64_t rec_start_us;      ///< cycle time of the interval's first sample
     bool rec_clock_seen;        ///< a SIM_CLOCK arrived since the REC_REQ (lockstep start time)
+    bool rec_end_ok;            ///< lockstep: a complete REC_END arrived, the batch's closing SIM_CLOCK not yet
     bool fe_info;               ///< FE_INFO received
     uint32_t sample_rate_hz;    ///< from FE_INFO
     double gain_uv;             ///< µV per ADC count, from FE_INFO
@@ -104,6 +105,8 @@ typedef struct {
     uint32_t dominant;          ///< dominant track id
     double snr, iqm;            ///< of the dominant track
     uint32_t flags;             ///< MD_TLM_F_* of the last cycle
+    uint64_t cost_detect;       ///< work (md_port_t work_now units) of this interval's detection (REC_DATA)
+    uint64_t cost_process;      ///< work of processing, scoring and deciding the last interval
     md_servo_result_t last_move;
     /* counters */
     uint32_t cycles, skipped, rec_failed, moves, moves_failed, inhibited, timeouts, guard_limited;

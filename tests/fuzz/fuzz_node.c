@@ -320,7 +320,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     fz_t in;
     fz_init(&in, data, size);
     memset(&g_shadow, 0, sizeof g_shadow);
-    const md_port_t port = {port_send, port_now, NULL};
+    const md_port_t port = {port_send, port_now, NULL, NULL, NULL};
     static md_node_t node;
     uint64_t now_us = fz_u32(&in);
     FUZZ_CHECK(md_node_init(&node, &port, now_us) == MD_OK);

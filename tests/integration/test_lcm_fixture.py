@@ -275,7 +275,7 @@ def cycle_frames_end(w, rnd, e, k, t0, t1, spikes, alive, exp):
     w.frame(t1, "TLM_STATUS", Electrode=e.index, SfsmState=e.state, Cycle=k, Depth_um=round(e.depth, 2),
             TargetDepth_um=round(target, 2), Snr=round(best, 3), Iqm=iqm,
             DominantTrack=dom, NumTracks=len(rows), NumHypotheses=len(hyps["rank"]), Flags=0,
-            NumSpikes=len(sp["sample"]), GuardAmp=round(best + 3.0, 2))
+            NumSpikes=len(sp["sample"]), GuardAmp=round(best + 3.0, 2), CycleCost=0, ProcessCost=0)
     w.held = held
     w.release()
     exp["MD_STATUS"].append({"electrode": e.index, "cycle": k, "utime": t1, "sfsm_state": e.state,

@@ -38,6 +38,13 @@ typedef struct {
     uint16_t last_interval;
     uint64_t last_start_us;
     uint64_t now_us;          /* platform time given to the controller with every frame */
+    /* work counter of the port (test_cycle_cost_from_the_work_counter) */
+    int work_port;            /* the port has work_now/work_section */
+    uint64_t work;            /* advances WORK_PER_CALL per work_now call */
+    int section_open;
+    uint32_t section_errors;  /* enter while open, or leave while closed */
+    uint32_t rec_frames;      /* REC_DATA frames of the current interval */
+    uint32_t costs_checked;
 } plant_t;
 
 static plant_t P;
@@ -56,6 +63,24 @@ static uint64_t port_now(void *ctx)
 {
     (void)ctx;
     return 0u;
+}
+
+/* A work counter that advances a fixed amount per reading: every measured
+ * stretch then costs exactly WORK_PER_CALL. */
+#define WORK_PER_CALL 7u
+
+static uint64_t port_work(void *ctx)
+{
+    (void)ctx;
+    P.work += WORK_PER_CALL;
+    return P.work;
+}
+
+static void port_section(void *ctx, bool enter)
+{
+    (void)ctx;
+    P.section_errors += ((P.section_open != 0) == enter) ? 1u : 0u; /* strictly alternating */
+    P.section_open = enter ? 1 : 0;
 }
 
 static double noise(void)
@@ -126,6 +151,7 @@ static void answer_rec_req(const md_frame_t *req)
     struct md_can_rec_req_t r;
     TEST_ASSERT_EQUAL_INT(0, md_can_rec_req_unpack(&r, req->data, req->len));
     P.recording = 1;
+    P.rec_frames = 0u;
     send_clock();
     /* amplitude peaks at 1050 um: SNR rises with depth in the window */
     const double amp = 10.0 + 60.0 * exp(-pow((P.pos_um - 1050.0) / 80.0, 2.0));
@@ -133,6 +159,7 @@ static void answer_rec_req(const md_frame_t *req)
     for (uint32_t i0 = 0u; i0 < r.num_samples; i0 += 30u) {
         md_frame_t f;
         frame_init(&f, MD_CAN_REC_DATA_FRAME_ID, MD_CAN_REC_DATA_LENGTH, 1);
+        P.rec_frames++;
         const uint32_t cnt = (r.num_samples - i0 < 30u) ? r.num_samples - i0 : 30u;
         f.data[0] = r.electrode;
         f.data[1] = (uint8_t)cnt;
@@ -203,6 +230,18 @@ static void observe_tlm(const md_frame_t *f)
         TEST_ASSERT_EQUAL_INT(0, md_can_tlm_status_unpack(&s, f->data, f->len));
         P.tlm_status++;
         TEST_ASSERT_EQUAL_UINT16(P.last_cycle[s.electrode], s.cycle);
+        if (P.work_port == 0) {
+            TEST_ASSERT_EQUAL_UINT32(0u, s.cycle_cost); /* no work counter: no cost */
+            TEST_ASSERT_EQUAL_UINT32(0u, s.process_cost);
+        } else if ((s.flags & (MD_TLM_F_SKIPPED | MD_TLM_F_REC_FAILED)) == 0u) {
+            /* one stretch per REC_DATA frame pushed, one for the processing */
+            TEST_ASSERT_EQUAL_UINT32(WORK_PER_CALL, s.process_cost);
+            TEST_ASSERT_EQUAL_UINT32(WORK_PER_CALL * (P.rec_frames + 1u), s.cycle_cost);
+            TEST_ASSERT_EQUAL_INT(0, P.section_open);
+            P.costs_checked++;
+        } else {
+            /* skipped or failed: checked by the tests of those paths */
+        }
         P.last_status_spikes = s.num_spikes;
         P.cycle_start_um = P.pos_um;
         if ((s.flags & MD_TLM_F_MOVE) != 0u) {
@@ -272,13 +311,15 @@ static void run(uint32_t rounds)
     }
 }
 
-static void boot(void)
+static void boot_with(int work_port)
 {
     memset(&P, 0, sizeof P);
     P.rng = 7u;
     P.pos_um = 1000.0;
     P.min_pos = P.max_pos = P.pos_um;
-    const md_port_t port = {port_send, port_now, NULL};
+    P.work_port = work_port;
+    const md_port_t port = {port_send, port_now, NULL, work_port != 0 ? port_work : NULL,
+                            work_port != 0 ? port_section : NULL};
     md_controller_t *c = md_controller_instance();
     TEST_ASSERT_EQUAL_INT(MD_OK, md_controller_init(c, &port, 0u));
     md_node_t *n = md_controller_node(c);
@@ -307,6 +348,8 @@ static void boot(void)
     pass_time(100000u);
 }
 
+static void boot(void) { boot_with(0); }
+
 static void test_cycles_move_safely_with_telemetry(void)
 {
     boot();
@@ -330,6 +373,18 @@ static void test_cycles_move_safely_with_telemetry(void)
 
 /* The `tracker` parameter (0x2041) selects a baseline; the cycle applies it
  * at the next cycle start with fresh tracks, and the loop still runs. */
+/* The cycle's cost (TLM_STATUS CycleCost, ProcessCost) comes from the port's
+ * work counter: detection of every REC_DATA frame plus the processing, each
+ * a stretch bracketed by work_section enter/leave. */
+static void test_cycle_cost_from_the_work_counter(void)
+{
+    boot_with(1);
+    run(40u);
+    TEST_ASSERT_GREATER_OR_EQUAL_UINT(3u, P.costs_checked);
+    TEST_ASSERT_EQUAL_UINT32(0u, P.section_errors);
+    TEST_ASSERT_EQUAL_INT(0, P.section_open);
+}
+
 static void test_tracker_parameter_selects_baseline(void)
 {
     boot();
@@ -497,6 +552,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_cycles_move_safely_with_telemetry);
+    RUN_TEST(test_cycle_cost_from_the_work_counter);
     RUN_TEST(test_tracker_parameter_selects_baseline);
     RUN_TEST(test_lockstep_timeout_waits_for_a_live_plant);
     RUN_TEST(test_lockstep_lost_answer_times_out);

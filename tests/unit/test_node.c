@@ -46,7 +46,7 @@ void setUp(void)
     g_n_sent = 0u;
     g_fail_send = false;
     g_now = T0_US;
-    const md_port_t port = {fake_send, fake_now, NULL};
+    const md_port_t port = {fake_send, fake_now, NULL, NULL, NULL};
     TEST_ASSERT_EQUAL_INT(MD_OK, md_node_init(&g_node, &port, g_now));
 }
 void tearDown(void) {}
@@ -757,7 +757,7 @@ static void test_send_failures_counted_and_halts_retried(void)
 
 static void test_bad_arguments(void)
 {
-    const md_port_t no_send = {NULL, fake_now, NULL};
+    const md_port_t no_send = {NULL, fake_now, NULL, NULL, NULL};
     md_node_t n;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, md_node_init(&n, &no_send, 0u));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, md_node_init(NULL, &no_send, 0u));

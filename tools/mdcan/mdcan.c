@@ -6,6 +6,7 @@
 ///
 ///   mdcan dump --bus SPEC [--count N] [--timeout-ms T] [--iface LABEL]
 ///   mdcan send --bus SPEC FRAME [FRAME...]
+///   mdcan bridge --serial PATH --bus SPEC [--wait-ms N]   (mdcan_bridge.c)
 ///
 /// Exit status: 0 ok; 1 dump ended by --timeout-ms before --count frames, or
 /// a send failed; 2 usage or frame syntax; 3 bus could not be opened.
@@ -19,6 +20,7 @@
 
 #include "md_bus.h"
 #include "md_bus_text.h"
+#include "mdcan_bridge.h"
 
 #define EXIT_INCOMPLETE 1
 #define EXIT_USAGE 2
@@ -39,6 +41,7 @@ static int usage(void)
     fprintf(stderr,
             "usage: mdcan dump --bus SPEC [--count N] [--timeout-ms T] [--iface LABEL]\n"
             "       mdcan send --bus SPEC FRAME [FRAME...]\n"
+            "       mdcan bridge --serial PATH --bus SPEC [--wait-ms N]\n"
             "SPEC:  vcan0 | can0 | <ifname> | udp | udp:<port> | auto\n"
             "FRAME: 123#DEADBEEF (11-bit) | 1ABCDEF0#0011 (29-bit) | 123##1<data> (CAN FD, 1 = BRS)\n"
             "dump prints candump -L lines: (sec.usec) LABEL ID#DATA; --timeout-ms ends it after T ms\n"
@@ -248,6 +251,9 @@ int main(int argc, char **argv)
 {
     if (argc < 2) {
         return usage();
+    }
+    if (strcmp(argv[1], "bridge") == 0) {
+        return mdcan_bridge_main(argc, argv);
     }
     const bool is_dump = strcmp(argv[1], "dump") == 0;
     if (!is_dump && strcmp(argv[1], "send") != 0) {

@@ -38,6 +38,9 @@ TLM_F_GUARD_RETRACT = 0x0400      # MD_TLM_F_GUARD_RETRACT
 MATCH_WINDOW_S = 0.4e-3           # SpikeInterface's default delta_time
 TRACK_OUTLIER, TRACK_UNLABELLED = -1, -2
 
+# One electrode's whole cycle on the target MCU: 48 M instructions (100 ms at
+# 480 MHz, docs/benchmarks.md).
+CYCLE_BUDGET = 48_000_000
 TLM_IDS = {0x500: "TLM_STATUS", 0x505: "TLM_CYCLE", 0x540: "TLM_SPIKES", 0x530: "TLM_HYP"}
 
 
@@ -316,7 +319,36 @@ def score_electrode(e, status_list, cycles, spikes, hyp, truth, args):
     }
     rep = isolation_metrics(e, ivs, track_neuron, truth)
     rep["tracking"] = tracking
+    cost = cycle_cost(sel)
+    if cost is not None:
+        rep["cost"] = cost
     return rep, accs, (consistent, total)
+
+
+def cycle_cost(sel):
+    """TLM_STATUS CycleCost/ProcessCost of the counted cycles that processed an
+    interval (not skipped, not a failed recording), against the per-electrode
+    budget; None when the controller has no work counter (every cost 0)."""
+    total = [int(s["CycleCost"]) for _, s, _ in sel if int(s["Flags"]) & 0x3 == 0]
+    proc = [int(s["ProcessCost"]) for _, s, _ in sel if int(s["Flags"]) & 0x3 == 0]
+    if not any(total):
+        return None
+
+    def median(v):
+        v = sorted(v)
+        n = len(v)
+        return v[n // 2] if n % 2 else (v[n // 2 - 1] + v[n // 2]) / 2
+
+    return {
+        "unit": "instructions",
+        "cycles_measured": len(total),
+        "median": median(total),
+        "max": max(total),
+        "process_median": median(proc),
+        "process_max": max(proc),
+        "budget": CYCLE_BUDGET,
+        "over_budget": sum(1 for v in total if v > CYCLE_BUDGET),
+    }
 
 
 def final_state(ivs):

@@ -34,6 +34,30 @@ typedef struct {
 
 typedef enum { SESSION_BUS_INPROC = 0, SESSION_BUS_SOCKET = 1 } session_bus_mode_t;
 
+/// The simulator's frame rate cap with --controller m7 unless --pace is given:
+/// below what the emulated UARTs carry on a loaded 2-core machine (docs/pil.md),
+/// so frames do not queue up in the bridge ahead of the plant's heartbeats.
+#define SESSION_M7_PACE_FPS 2000u
+
+/// --idle-s with --controller m7 unless given: a 10 s interval takes the
+/// emulated UARTs tens of seconds on a loaded machine, with no frame on the
+/// bus meanwhile (the simulator has sent it all; it waits in the bridge and
+/// the sockets), which is not a controller waiting for nothing.
+#define SESSION_M7_IDLE_S 300.0
+
+/// heartbeat_timeout_ms with --controller m7 unless --param sets it: the
+/// plant's heartbeats (wall clock) reach the emulated controller through the
+/// bridge's queue and the UARTs, whose latency on a loaded machine exceeds the
+/// default 500 ms; lost heartbeats would stop motion and change the session
+/// (docs/pil.md). Decisions do not depend on the value while none is lost.
+#define SESSION_M7_HEARTBEAT_TIMEOUT "heartbeat_timeout_ms=10000"
+
+/// Which controller runs the session.
+typedef enum {
+    SESSION_CTRL_HOST = 0,       ///< microdrive-fw (socket bus) or the controller in this process (inproc)
+    SESSION_CTRL_M7 = 1          ///< microdrive-fw-m7.elf under qemu-system-arm + mdcan bridge (docs/pil.md)
+} session_controller_t;
+
 typedef struct {
     const char *scenario;        ///< --scenario FILE
     uint64_t seed;               ///< --seed N (default: the scenario's)
@@ -46,6 +70,7 @@ typedef struct {
     const char *bin_dir;         ///< --bin-dir: microdrive-sim/-fw (default: next to this program)
     const char *python;          ///< --python: interpreter for the scorer
     uint32_t pace_fps;           ///< --pace: microdrive-sim's frame rate cap on a socket bus
+                                 ///< (default 10000; with --controller m7 SESSION_M7_PACE_FPS)
     bool no_score;               ///< --no-score: leave report.json out
     bool quiet;                  ///< --quiet: no progress lines
     bool candump_samples;        ///< --candump-samples: REC_DATA frames go to candump.log too
@@ -54,13 +79,18 @@ typedef struct {
     bool no_plots;               ///< --no-plots: no PNG files
     session_param_t params[SESSION_MAX_PARAMS];   ///< --param, in command-line order
     uint32_t n_params;
+    session_controller_t controller;   ///< --controller host|m7
+    const char *m7_image;        ///< --m7-image: the Cortex-M7 image (default: $MD_M7_IMAGE, else
+                                 ///< <bin-dir>/../../cortex-m7/bin/microdrive-fw-m7.elf)
+    const char *qemu;            ///< --qemu: qemu-system-arm (default: $MD_QEMU, else through PATH)
+    uint32_t icount_shift;       ///< --icount-shift N: QEMU -icount shift=N (default 1: 2 ns per instruction)
     bool help;
 } session_opts_t;
 
 /// Parses argv. 0 ok, -1 usage error (message in msg).
 int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg, size_t msglen);
-/// The --help text.
-const char *session_cli_usage(void);
+/// Writes the --help text to f.
+void session_cli_print_usage(FILE *f);
 
 /// Applies the --param options to a controller's parameter table, in order,
 /// through md_params_set (same checks as a set over the bus). 0 ok; -1 with

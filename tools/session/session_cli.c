@@ -8,13 +8,16 @@
 #include "md_params.h"
 #include "session.h"
 
-const char *session_cli_usage(void)
+/* Two halves: C11 compilers need to support string literals of 4095
+ * characters only. */
+static const char *usage_options(void)
 {
     return "usage: microdrive-session --scenario FILE [--seed N] [--bus auto|vcan0|udp|udp:PORT|IFACE|inproc]\n"
            "                          --out DIR [--cycles N | --duration-s S] [--idle-s S] [--pace FPS]\n"
            "                          [--bin-dir DIR] [--python PY] [--param NAME=VALUE]...\n"
            "                          [--no-score] [--no-lcm] [--no-plots] [--no-recording]\n"
-           "                          [--candump-samples] [--quiet] [--help]\n"
+           "                          [--candump-samples] [--controller host|m7] [--m7-image ELF]\n"
+           "                          [--qemu PATH] [--icount-shift N] [--quiet] [--help]\n"
            "  --scenario FILE   simulator scenario (scenarios/*.yaml)\n"
            "  --seed N          seed of every random stream (default: the scenario's)\n"
            "  --bus SPEC        inproc: simulator + controller in this process, virtual clock, as fast\n"
@@ -29,10 +32,12 @@ const char *session_cli_usage(void)
            "  --duration-s S    end when simulated time passed S and every interval begun before\n"
            "                    S is reported (default: the scenario's duration_s; at most 1e9)\n"
            "  --idle-s S        end early when nothing but heartbeats moved for S seconds (virtual\n"
-           "                    seconds in-process, wall seconds otherwise; default 30, at most 1e9)\n"
+           "                    seconds in-process, wall seconds otherwise; default 30, 300 with\n"
+           "                    --controller m7; at most 1e9)\n"
            "  --pace FPS        socket bus: microdrive-sim sends at most FPS frames per wall second after\n"
            "                    a burst, so that the controller and the recorder lose none (default\n"
-           "                    10000; 0 = no cap); changes when frames go out, never what they are\n"
+           "                    10000, 2000 with --controller m7; 0 = no cap); changes when frames go\n"
+           "                    out, never what they are\n"
            "  --bin-dir DIR     where microdrive-sim and microdrive-fw are (default: next to this program)\n"
            "  --python PY       interpreter for score.py and the plots (default: $MD_PYTHON, else the\n"
            "                    project venv this build was configured with, else a .venv in a folder\n"
@@ -40,7 +45,20 @@ const char *session_cli_usage(void)
            "  --param NAME=VALUE  set a controller parameter before the start (repeatable; names and\n"
            "                    ranges: microdrive-fw --params-markdown), e.g. --param tracker=1;\n"
            "                    in-process applied to the controller, on a socket bus passed to\n"
-           "                    microdrive-fw --param\n"
+           "                    microdrive-fw --param\n";
+}
+
+static const char *usage_m7_and_outputs(void)
+{
+    return "  --controller C    host (default): microdrive-fw, or the controller in this process with\n"
+           "                    inproc; m7: the Cortex-M7 image under qemu-system-arm -M mps2-an500\n"
+           "                    -icount shift=N, its frames over the board's UART to an mdcan bridge on\n"
+           "                    the bus (processor in the loop, docs/pil.md; needs a socket bus)\n"
+           "  --m7-image ELF    the image (default: $MD_M7_IMAGE, else\n"
+           "                    <bin-dir>/../../cortex-m7/bin/microdrive-fw-m7.elf)\n"
+           "  --qemu PATH       qemu-system-arm to use (default: $MD_QEMU, else through PATH)\n"
+           "  --icount-shift N  virtual time of 2^N ns per instruction (default 1: ~500 MHz)\n"
+           "                    (m7 also sets heartbeat_timeout_ms=10000 unless --param sets it)\n"
            "  --no-score        no report.json\n"
            "  --no-lcm          no session.lcmlog (md-lcm-bridge --write-log over candump.log and\n"
            "                    truth.jsonl); implies --no-plots\n"
@@ -52,6 +70,12 @@ const char *session_cli_usage(void)
            "Progress: one line per electrode and cycle (TLM_STATUS). Exit: 0 goal reached, 4 ended idle\n"
            "before the goal (report written), 5 the session and its report are fine but the LCM log\n"
            "or the plots failed (message above), 1 runtime error, 2 usage.\n";
+}
+
+void session_cli_print_usage(FILE *f)
+{
+    (void)fputs(usage_options(), f);
+    (void)fputs(usage_m7_and_outputs(), f);
 }
 
 static int parse_u64(const char *s, uint64_t *v)
@@ -133,7 +157,8 @@ int session_apply_params(md_params_t *p, const session_opts_t *o, char *msg, siz
     return 0;
 }
 
-static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen)
+static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen, bool *pace_given,
+                     bool *idle_given)
 {
     uint64_t u = 0u;
     if (strcmp(opt, "--scenario") == 0) {
@@ -160,17 +185,36 @@ static int cli_value(session_opts_t *o, const char *opt, const char *val, char *
         if (parse_double(val, &o->idle_s) != 0 || !(o->idle_s > 0.0)) {
             goto bad;
         }
+        *idle_given = true;
     } else if (strcmp(opt, "--pace") == 0) {
         if (parse_u64(val, &u) != 0 || u > 10000000u) {
             goto bad;
         }
         o->pace_fps = (uint32_t)u;
+        *pace_given = true;
     } else if (strcmp(opt, "--bin-dir") == 0) {
         o->bin_dir = val;
     } else if (strcmp(opt, "--python") == 0) {
         o->python = val;
     } else if (strcmp(opt, "--param") == 0) {
         return cli_param(o, val, msg, msglen);
+    } else if (strcmp(opt, "--controller") == 0) {
+        if (strcmp(val, "host") == 0) {
+            o->controller = SESSION_CTRL_HOST;
+        } else if (strcmp(val, "m7") == 0) {
+            o->controller = SESSION_CTRL_M7;
+        } else {
+            goto bad;
+        }
+    } else if (strcmp(opt, "--m7-image") == 0) {
+        o->m7_image = val;
+    } else if (strcmp(opt, "--qemu") == 0) {
+        o->qemu = val;
+    } else if (strcmp(opt, "--icount-shift") == 0) {
+        if (parse_u64(val, &u) != 0 || u > 10u) {
+            goto bad;
+        }
+        o->icount_shift = (uint32_t)u;
     } else {
         (void)snprintf(msg, msglen, "unknown option '%s'", opt);
         return -1;
@@ -188,6 +232,9 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     o->duration_s = -1.0;
     o->idle_s = 30.0;
     o->pace_fps = 10000u;
+    o->icount_shift = 1u;
+    bool pace_given = false;
+    bool idle_given = false;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
@@ -210,12 +257,33 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
         } else if (i + 1 >= argc || strncmp(a, "--", 2) != 0) {
             (void)snprintf(msg, msglen, "'%s' needs a value or is not an option", a);
             return -1;
-        } else if (cli_value(o, a, argv[++i], msg, msglen) != 0) {
+        } else if (cli_value(o, a, argv[++i], msg, msglen, &pace_given, &idle_given) != 0) {
             return -1;
         }
     }
     if (o->scenario == NULL || o->out == NULL) {
         (void)snprintf(msg, msglen, "--scenario and --out are required");
+        return -1;
+    }
+    if (o->controller == SESSION_CTRL_M7 && !pace_given) {
+        o->pace_fps = SESSION_M7_PACE_FPS;
+    }
+    if (o->controller == SESSION_CTRL_M7 && !idle_given) {
+        o->idle_s = SESSION_M7_IDLE_S;
+    }
+    if (o->controller == SESSION_CTRL_M7) {
+        bool set = false;
+        for (uint32_t i = 0u; i < o->n_params; ++i) {
+            set = set || strncmp(o->params[i].arg, "heartbeat_timeout_ms=", 21) == 0;
+        }
+        /* first, so that a later --param of the same name would still win */
+        if (!set && cli_param(o, SESSION_M7_HEARTBEAT_TIMEOUT, msg, msglen) != 0) {
+            return -1;
+        }
+    }
+    if (o->controller == SESSION_CTRL_M7 && (strcmp(o->bus, "inproc") == 0 || strncmp(o->bus, "inproc:", 7) == 0)) {
+        (void)snprintf(msg, msglen, "--controller m7 needs a socket bus (udp, vcan0, auto): QEMU and the bridge are "
+                                    "processes");
         return -1;
     }
     if (o->cycles > 0u && o->duration_s > 0.0) {

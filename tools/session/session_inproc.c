@@ -209,7 +209,7 @@ static int open_endpoints(inproc_t *ip, const char *spec)
  * master, starts it with an NMT start that the log shows. */
 static int ctrl_boot(inproc_t *ip)
 {
-    const md_port_t port = {ctrl_send, ctrl_now, ip};
+    const md_port_t port = {ctrl_send, ctrl_now, ip, NULL, NULL};
     ip->ctrl = md_controller_instance();
     if (md_controller_init(ip->ctrl, &port, ip->now_us) != MD_OK) {
         fprintf(stderr, "microdrive-session: controller init failed\n");

@@ -320,11 +320,12 @@ int main(int argc, char *argv[])
     static scenario_t sc;
     char msg[1024], bin_dir[PATH_MAX];
     if (session_cli_parse(&o, argc, argv, msg, sizeof msg) != 0) {
-        fprintf(stderr, "microdrive-session: %s\n%s", msg, session_cli_usage());
+        fprintf(stderr, "microdrive-session: %s\n", msg);
+        session_cli_print_usage(stderr);
         return 2;
     }
     if (o.help) {
-        fputs(session_cli_usage(), stdout);
+        session_cli_print_usage(stdout);
         return 0;
     }
     if (scenario_load(&sc, o.scenario, msg, sizeof msg) != 0) {

@@ -3,7 +3,9 @@
 /// microdrive-sim as separate processes, and the recorder as an endpoint of
 /// this process. The controller starts first and the simulator only once the
 /// controller's boot-up heartbeat is on the bus, so the controller sees the
-/// plant's start-up batch, as in the in-process mode.
+/// plant's start-up batch, as in the in-process mode. With --controller m7
+/// the controller is the Cortex-M7 image under qemu-system-arm, its UART on a
+/// Unix socket that `mdcan bridge` connects to the bus (docs/pil.md).
 #include <errno.h>
 #include <fcntl.h>
 #include <inttypes.h>
@@ -12,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -51,7 +54,8 @@ static uint64_t mono_us(void)
     return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
 }
 
-/* Starts argv[0] with stdout and stderr into log_path. -1 on failure. */
+/* Starts argv[0] (through PATH if it has no '/') with stdout and stderr into
+ * log_path. -1 on failure. */
 static pid_t spawn_logged(char *const argv[], const char *log_path)
 {
     posix_spawn_file_actions_t fa;
@@ -61,7 +65,8 @@ static pid_t spawn_logged(char *const argv[], const char *log_path)
     }
     (void)posix_spawn_file_actions_addopen(&fa, 1, log_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
     (void)posix_spawn_file_actions_adddup2(&fa, 1, 2);
-    const int rc = posix_spawn(&pid, argv[0], &fa, NULL, argv, environ);
+    const int rc = (strchr(argv[0], '/') != NULL) ? posix_spawn(&pid, argv[0], &fa, NULL, argv, environ)
+                                                  : posix_spawnp(&pid, argv[0], &fa, NULL, argv, environ);
     (void)posix_spawn_file_actions_destroy(&fa);
     if (rc != 0) {
         fprintf(stderr, "microdrive-session: cannot start %s: %s\n", argv[0], strerror(rc));
@@ -191,7 +196,7 @@ static int open_recorder(const session_opts_t *o, session_track_t *t, char *bus_
     return 0;
 }
 
-static session_end_t procs_loop(const session_opts_t *o, session_track_t *t, pid_t fw, pid_t sim)
+static session_end_t procs_loop(const session_opts_t *o, session_track_t *t, pid_t fw, pid_t bridge, pid_t sim)
 {
     uint64_t last_activity = t->activity, activity_at = mono_us();
     const uint64_t idle_us = (uint64_t)(o->idle_s * 1e6);
@@ -205,7 +210,8 @@ static session_end_t procs_loop(const session_opts_t *o, session_track_t *t, pid
         if (session_stop_signal != 0) {
             return SESSION_END_SIGNAL;
         }
-        if (child_gone(fw, "microdrive-fw") || child_gone(sim, "microdrive-sim")) {
+        if (child_gone(fw, o->controller == SESSION_CTRL_M7 ? "qemu-system-arm" : "microdrive-fw") ||
+            child_gone(sim, "microdrive-sim") || (bridge > 0 && child_gone(bridge, "mdcan bridge"))) {
             return SESSION_END_ERROR;
         }
         const uint64_t now = mono_us();
@@ -218,21 +224,12 @@ static session_end_t procs_loop(const session_opts_t *o, session_track_t *t, pid
     }
 }
 
-/* The controller first; the simulator once its boot-up heartbeat is seen. */
-static session_end_t procs_start(const session_opts_t *o, session_track_t *t, const char *bus, pid_t *fw,
-                                 pid_t *sim)
+/* microdrive-fw --bus B --auto-start [--param ...] with its log in DIR/fw.log. */
+static pid_t start_host_controller(const session_opts_t *o, const char *bus, const char *fw_log)
 {
-    static char fw_path[4096], sim_path[4096], fw_log[4096], sim_log[4096], truth[4096], seed[32];
-    static char bus_arg[64], scen[4096], pace[32];
-    (void)snprintf(pace, sizeof pace, "%u", (unsigned)o->pace_fps);
+    static char fw_path[4096], bus_arg[64];
     (void)snprintf(bus_arg, sizeof bus_arg, "%s", bus);
-    (void)snprintf(scen, sizeof scen, "%s", o->scenario);
     (void)snprintf(fw_path, sizeof fw_path, "%s/microdrive-fw", o->bin_dir);
-    (void)snprintf(sim_path, sizeof sim_path, "%s/microdrive-sim", o->bin_dir);
-    (void)snprintf(fw_log, sizeof fw_log, "%s/fw.log", o->out);
-    (void)snprintf(sim_log, sizeof sim_log, "%s/sim.log", o->out);
-    (void)snprintf(truth, sizeof truth, "%s/truth.jsonl", o->out);
-    (void)snprintf(seed, sizeof seed, "%" PRIu64, o->seed);
     /* --param NAME=VALUE goes to microdrive-fw, which applies it before the start */
     static char params[SESSION_MAX_PARAMS][128];
     char *fw_argv[5u + 2u * SESSION_MAX_PARAMS] = {fw_path, "--bus", bus_arg, "--auto-start"};
@@ -243,18 +240,115 @@ static session_end_t procs_start(const session_opts_t *o, session_track_t *t, co
         fw_argv[n++] = params[i];
     }
     fw_argv[n] = NULL;
-    *fw = spawn_logged(fw_argv, fw_log);
-    if (*fw < 0) {
+    return spawn_logged(fw_argv, fw_log);
+}
+
+/// UARTs of the AN500 that carry the link (md_can_uart.h: MD_CAN_UART_STRIPES).
+#define M7_UARTS 5
+/* Unix sockets of the M7's UARTs (short paths: sun_path has 108 bytes). */
+static char g_uart_dir[64], g_uart_sock[M7_UARTS][96];
+
+/* The Cortex-M7 image under QEMU (semihosting console into fw_log), its five
+ * UARTs on Unix sockets that QEMU serves, and the bridge from those sockets to
+ * the bus (DIR/bridge.log). QEMU waits for the bridge before the image starts. */
+static pid_t start_m7_controller(const session_opts_t *o, const char *bus, const char *fw_log, pid_t *bridge)
+{
+    static char image[4096], qemu[4096], mdcan[4096], bridge_log[4096], bus_arg[64], icount[32];
+    static char chardev[M7_UARTS][512], serial[M7_UARTS][16];
+    static char semi[4096];
+    const char *env_image = getenv("MD_M7_IMAGE"), *env_qemu = getenv("MD_QEMU");
+    if (o->m7_image != NULL) {
+        (void)snprintf(image, sizeof image, "%s", o->m7_image);
+    } else if (env_image != NULL && env_image[0] != '\0') {
+        (void)snprintf(image, sizeof image, "%s", env_image);
+    } else {
+        (void)snprintf(image, sizeof image, "%s/../../cortex-m7/bin/microdrive-fw-m7.elf", o->bin_dir);
+    }
+    if (access(image, R_OK) != 0) {
+        fprintf(stderr, "microdrive-session: no Cortex-M7 image %s (cmake --preset cortex-m7 && cmake --build "
+                        "--preset cortex-m7, or --m7-image)\n", image);
+        return -1;
+    }
+    (void)snprintf(qemu, sizeof qemu, "%s",
+                   o->qemu != NULL ? o->qemu : ((env_qemu != NULL && env_qemu[0] != '\0') ? env_qemu : "qemu-system-arm"));
+    (void)snprintf(g_uart_dir, sizeof g_uart_dir, "/tmp/md-pil-XXXXXX");
+    if (mkdtemp(g_uart_dir) == NULL) {
+        fprintf(stderr, "microdrive-session: mkdtemp: %s\n", strerror(errno));
+        g_uart_dir[0] = '\0';
+        return -1;
+    }
+    for (int j = 0; j < M7_UARTS; ++j) {
+        (void)snprintf(g_uart_sock[j], sizeof g_uart_sock[j], "%s/uart%d.sock", g_uart_dir, j);
+        (void)snprintf(chardev[j], sizeof chardev[j], "socket,id=uart%d,path=%.100s,server=on,wait=on", j,
+                       g_uart_sock[j]);
+        (void)snprintf(serial[j], sizeof serial[j], "chardev:uart%d", j);
+    }
+    (void)snprintf(icount, sizeof icount, "shift=%u", (unsigned)o->icount_shift);
+    /* the image's command line: semihosting arg=WORD (QEMU option syntax: no commas in a word) */
+    int at = snprintf(semi, sizeof semi, "enable=on,target=native,arg=microdrive-fw-m7,arg=--auto-start");
+    for (uint32_t i = 0u; i < o->n_params && i < SESSION_MAX_PARAMS && at > 0 && (size_t)at < sizeof semi; ++i) {
+        if (strchr(o->params[i].arg, ',') != NULL) {
+            fprintf(stderr, "microdrive-session: --param %s: no commas with --controller m7\n", o->params[i].arg);
+            return -1;
+        }
+        at += snprintf(semi + at, sizeof semi - (size_t)at, ",arg=--param,arg=%s", o->params[i].arg);
+    }
+    if (at <= 0 || (size_t)at >= sizeof semi) {
+        fprintf(stderr, "microdrive-session: the image's command line is too long\n");
+        return -1;
+    }
+    char *const qemu_argv[] = {qemu, "-M", "mps2-an500", "-display", "none", "-monitor", "none",
+                               "-icount", icount,
+                               "-chardev", chardev[0], "-serial", serial[0], "-chardev", chardev[1], "-serial", serial[1],
+                               "-chardev", chardev[2], "-serial", serial[2], "-chardev", chardev[3], "-serial", serial[3],
+                               "-chardev", chardev[4], "-serial", serial[4],
+                               "-semihosting-config", semi, "-kernel", image, NULL};
+    _Static_assert(M7_UARTS == 5, "qemu_argv lists five UARTs");
+    fprintf(stderr, "microdrive-session: controller: %s under %s -icount %s, UART0..4 on %s/uart*.sock\n", image,
+            qemu, icount, g_uart_dir);
+    const pid_t pid = spawn_logged(qemu_argv, fw_log);
+    if (pid < 0) {
+        return -1;
+    }
+    (void)snprintf(mdcan, sizeof mdcan, "%s/mdcan", o->bin_dir);
+    (void)snprintf(bus_arg, sizeof bus_arg, "%s", bus);
+    (void)snprintf(bridge_log, sizeof bridge_log, "%s/bridge.log", o->out);
+    char *const bridge_argv[] = {mdcan, "bridge", "--serial", g_uart_sock[0], "--serial", g_uart_sock[1],
+                                 "--serial", g_uart_sock[2], "--serial", g_uart_sock[3], "--serial", g_uart_sock[4],
+                                 "--bus", bus_arg, "--wait-ms", "10000", NULL};
+    *bridge = spawn_logged(bridge_argv, bridge_log);
+    return pid;
+}
+
+/* The controller first; the simulator once its boot-up heartbeat is seen. */
+static session_end_t procs_start(const session_opts_t *o, session_track_t *t, const char *bus, pid_t *fw,
+                                 pid_t *bridge, pid_t *sim)
+{
+    static char sim_path[4096], fw_log[4096], sim_log[4096], truth[4096], seed[32];
+    static char bus_arg[64], scen[4096], pace[32];
+    (void)snprintf(pace, sizeof pace, "%u", (unsigned)o->pace_fps);
+    (void)snprintf(bus_arg, sizeof bus_arg, "%s", bus);
+    (void)snprintf(scen, sizeof scen, "%s", o->scenario);
+    (void)snprintf(sim_path, sizeof sim_path, "%s/microdrive-sim", o->bin_dir);
+    (void)snprintf(fw_log, sizeof fw_log, "%s/fw.log", o->out);
+    (void)snprintf(sim_log, sizeof sim_log, "%s/sim.log", o->out);
+    (void)snprintf(truth, sizeof truth, "%s/truth.jsonl", o->out);
+    (void)snprintf(seed, sizeof seed, "%" PRIu64, o->seed);
+    const bool m7 = o->controller == SESSION_CTRL_M7;
+    *fw = m7 ? start_m7_controller(o, bus, fw_log, bridge) : start_host_controller(o, bus, fw_log);
+    if (*fw < 0 || (m7 && *bridge < 0)) {
         return SESSION_END_ERROR;
     }
+    const char *fw_name = m7 ? "qemu-system-arm" : "microdrive-fw";
     const uint64_t t0 = mono_us();
     while (!t->fw_booted && mono_us() - t0 < PROCS_BOOT_WAIT_US) {
-        if (record_slice(t, PROCS_SLICE_US) != 0 || child_gone(*fw, "microdrive-fw") || session_stop_signal != 0) {
+        if (record_slice(t, PROCS_SLICE_US) != 0 || child_gone(*fw, fw_name) ||
+            (m7 && child_gone(*bridge, "mdcan bridge")) || session_stop_signal != 0) {
             return SESSION_END_ERROR;
         }
     }
     if (!t->fw_booted) {
-        fprintf(stderr, "microdrive-session: no boot-up heartbeat of microdrive-fw (see %s)\n", fw_log);
+        fprintf(stderr, "microdrive-session: no boot-up heartbeat of the controller (see %s)\n", fw_log);
         return SESSION_END_ERROR;
     }
     char *const sim_argv[] = {sim_path, "--scenario", scen, "--seed", seed, "--bus", bus_arg,
@@ -318,16 +412,27 @@ static bool report_losses(const session_opts_t *o)
 
 session_end_t session_run_procs(const session_opts_t *o, session_track_t *t, char *bus_used, size_t bus_used_len)
 {
-    pid_t fw = -1, sim = -1;
+    pid_t fw = -1, bridge = -1, sim = -1;
     if (open_recorder(o, t, bus_used, bus_used_len) != 0) {
         return SESSION_END_ERROR;
     }
-    session_end_t end = procs_start(o, t, bus_used, &fw, &sim);
+    session_end_t end = procs_start(o, t, bus_used, &fw, &bridge, &sim);
     if (end == SESSION_END_GOAL) {
-        end = procs_loop(o, t, fw, sim);
+        end = procs_loop(o, t, fw, bridge, sim);
+    }
+    (void)stop_child(sim, t);
+    /* the bridge before QEMU, so that its counters are of the session */
+    if (bridge > 0 && stop_child(bridge, t) != 0) {
+        fprintf(stderr, "microdrive-session: the bridge lost or refused frames (see %s/bridge.log)\n", o->out);
+        end = SESSION_END_ERROR;
     }
     (void)stop_child(fw, t);
-    (void)stop_child(sim, t);
+    if (g_uart_dir[0] != '\0') {
+        for (int j = 0; j < M7_UARTS; ++j) {
+            (void)unlink(g_uart_sock[j]);
+        }
+        (void)rmdir(g_uart_dir);
+    }
     (void)record_slice(t, 200000);   /* the last frames in flight */
     if (report_losses(o)) {
         fprintf(stderr, "microdrive-session: frames were lost on the bus: the report could be wrong\n");

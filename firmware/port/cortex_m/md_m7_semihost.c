@@ -2,6 +2,7 @@
 #include "md_m7_semihost.h"
 
 #include <stddef.h>
+#include <stdint.h>
 
 /* One semihosting request: r0 = operation, r1 = argument (a pointer to a
  * parameter block or a value); the host answers in r0. */
@@ -11,6 +12,21 @@ static uint32_t sh_call(uint32_t op, const void *arg)
     register const void *r1 __asm__("r1") = arg;
     __asm__ volatile("bkpt 0xAB" : "+r"(r0) : "r"(r1) : "memory");
     return r0;
+}
+
+int32_t md_sh_get_cmdline(char *buf, uint32_t cap)
+{
+    if (buf == NULL || cap < 2u) {
+        return -1;
+    }
+    /* parameter block: buffer address, its size; the host writes the length back */
+    uint32_t block[2] = {(uint32_t)(uintptr_t)buf, cap}; /* the call clobbers "memory" */
+    if (sh_call(MD_SH_SYS_GET_CMDLINE, block) != 0u || block[1] >= cap) {
+        buf[0] = '\0';
+        return -1;
+    }
+    buf[block[1]] = '\0';
+    return (int32_t)block[1];
 }
 
 void md_sh_write0(const char *s)

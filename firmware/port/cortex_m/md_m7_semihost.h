@@ -15,11 +15,18 @@
 #define MD_SH_SYS_WRITEC 0x03u
 #define MD_SH_SYS_WRITE0 0x04u
 #define MD_SH_SYS_EXIT 0x18u
+#define MD_SH_SYS_GET_CMDLINE 0x15u
 #define MD_SH_SYS_EXIT_EXTENDED 0x20u
 /// Reason code of SYS_EXIT*: the application finished normally.
 #define MD_SH_ADP_STOPPED_APPLICATION_EXIT 0x20026u
 /// Reason code of SYS_EXIT: unknown run-time error (QEMU exits with 1).
 #define MD_SH_ADP_STOPPED_RUNTIME_ERROR 0x20023u
+
+/// Copy the command line the host gives the program (QEMU:
+/// `-semihosting-config arg=...`, words joined by spaces, the first is the
+/// program) into `buf`, NUL-terminated. Returns its length, or -1 if the host
+/// has none or it does not fit in `cap` bytes.
+int32_t md_sh_get_cmdline(char *buf, uint32_t cap);
 
 /// Write a NUL-terminated string to the host console. `s` may be NULL (no-op).
 void md_sh_write0(const char *s);

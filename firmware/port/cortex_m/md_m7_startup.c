@@ -48,6 +48,12 @@ static void default_handler(void);
 void SysTick_Handler(void) __attribute__((weak, alias("default_handler")));
 void PendSV_Handler(void) __attribute__((weak, alias("default_handler")));
 void SVC_Handler(void) __attribute__((weak, alias("default_handler")));
+/* External interrupts 0, 2, 4, 18, 20 on the AN500: UART0..4 RX (md_can_uart.c). */
+void UART0RX_IRQHandler(void) __attribute__((weak, alias("default_handler")));
+void UART1RX_IRQHandler(void) __attribute__((weak, alias("default_handler")));
+void UART2RX_IRQHandler(void) __attribute__((weak, alias("default_handler")));
+void UART3RX_IRQHandler(void) __attribute__((weak, alias("default_handler")));
+void UART4RX_IRQHandler(void) __attribute__((weak, alias("default_handler")));
 
 #define DH4 default_handler, default_handler, default_handler, default_handler
 #define DH16 DH4, DH4, DH4, DH4
@@ -72,7 +78,12 @@ __attribute__((section(".isr_vector"), used)) static const md_m7_vector_table_t 
         [11] = default_handler, /* DebugMonitor */
         [13] = PendSV_Handler,
         [14] = SysTick_Handler,
-        [15] = DH16, DH16, /* external interrupts 0..31 */
+        /* external interrupts 0..31 (index 15 + n); UART RX lines 0, 2, 4, 18, 20 */
+        [15] = UART0RX_IRQHandler, default_handler,
+        [17] = UART1RX_IRQHandler, default_handler,
+        [19] = UART2RX_IRQHandler, DH4, DH4, DH4, default_handler,
+        [33] = UART3RX_IRQHandler, default_handler,
+        [35] = UART4RX_IRQHandler, DH4, DH4, default_handler, default_handler, default_handler,
     },
 };
 _Static_assert(MD_M7_EXT_IRQS == 32u, "the initializer above lists 32 external vectors");

@@ -32,6 +32,11 @@ void Reset_Handler(void);
 void SysTick_Handler(void);
 void PendSV_Handler(void);
 void SVC_Handler(void);
+void UART0RX_IRQHandler(void);
+void UART1RX_IRQHandler(void);
+void UART2RX_IRQHandler(void);
+void UART3RX_IRQHandler(void);
+void UART4RX_IRQHandler(void);
 
 /// Flush (md_m7_exit_hook), print the stack high-water mark and end the
 /// program with exit status `code` (see md_sh_exit_status). Never returns.

@@ -200,7 +200,7 @@ int main(int argc, char **argv)
         usage(stderr);
         return 2;
     }
-    const md_port_t port = {port_send, port_now_us, &port_ctx};
+    const md_port_t port = {port_send, port_now_us, &port_ctx, NULL, NULL}; /* no work counter on a host */
     if (md_controller_init(ctl, &port, mono_us()) != MD_OK) {
         return 2;
     }

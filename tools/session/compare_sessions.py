@@ -1,0 +1,206 @@
+#!/usr/bin/env python3
+"""Compares the controller's decisions in two sessions of the same scenario and
+seed (e.g. the host build in-process and the Cortex-M7 image under QEMU,
+docs/pil.md): every frame the controller sent about an electrode (REC_REQ,
+ACT_CMD, TLM_CYCLE, TLM_STATUS, TLM_TRACK, TLM_WAVE, TLM_HYP, TLM_SPIKES) and
+every SIM_STEP, in order, byte for byte, apart from TLM_STATUS CycleCost and
+ProcessCost (the platform's work counter); then report.json apart from "bus"
+and each electrode's "cost".
+
+    compare_sessions.py DIR_A DIR_B [--cycles N] [--json OUT]
+
+The first differing electrode cycle is named with its interval (IntervalId,
+start time) and the decoded fields that differ; then every differing cycle is
+counted by frame and field, so that a difference confined to one field shows
+as such. Only the cycles both sessions
+completed are compared (--cycles N: the first N). Also printed, not compared:
+the controller's heartbeat-loss EMCYs (0x8130) in each session, the usual
+cause of a difference that is the link's and not the computation's.
+
+Exit status: 0 same, 1 different, 2 usage or unreadable input.
+"""
+import argparse
+import json
+import os
+import sys
+from collections import defaultdict
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+DBC = os.path.join(HERE, "..", "..", "common", "protocol", "microdrive.dbc")
+
+PER_ELECTRODE = {0x210: "ACT_CMD", 0x220: "REC_REQ", 0x500: "TLM_STATUS", 0x505: "TLM_CYCLE",
+                 0x510: "TLM_TRACK", 0x520: "TLM_WAVE", 0x530: "TLM_HYP", 0x540: "TLM_SPIKES"}
+SIM_STEP = 0x021
+EMCY_CTRL = 0x081
+TLM_STATUS = 0x500
+TLM_CYCLE = 0x505
+# TLM_STATUS CycleCost (bit 256) and ProcessCost (bit 288): bytes 32..39.
+COST_BYTES = slice(32, 40)
+
+
+def read_frames(path):
+    """Per electrode: [cycle] -> [(id, data)] in log order; SIM_STEPs; EMCY 0x8130 count."""
+    per_el = defaultdict(lambda: [[]])       # e -> list of cycles, each a frame list (last one open)
+    cycle_info = defaultdict(list)           # e -> [(IntervalId, StartTime_us)] per closed cycle
+    steps, lost = [], 0
+    pending_cycle = {}
+    with open(path, "r", errors="replace") as f:
+        for line in f:
+            parts = line.split()
+            if len(parts) < 3 or "#" not in parts[2]:
+                continue
+            cid, _, data = parts[2].partition("#")
+            if data.startswith("#"):
+                data = data[2:]              # FD: "##<flags nibble><data>"
+            try:
+                fid = int(cid, 16)
+                raw = bytes.fromhex(data)
+            except ValueError:
+                continue
+            if fid == SIM_STEP:
+                steps.append(raw)
+            elif fid == EMCY_CTRL and len(raw) >= 2 and int.from_bytes(raw[0:2], "little") == 0x8130:
+                lost += 1
+            elif fid in PER_ELECTRODE and raw:
+                e = raw[0]
+                if fid == TLM_STATUS:
+                    raw = raw[:COST_BYTES.start] + bytes(COST_BYTES.stop - COST_BYTES.start) + raw[COST_BYTES.stop:]
+                per_el[e][-1].append((fid, raw))
+                if fid == TLM_CYCLE and len(raw) >= 24 and raw[1] == 1:
+                    pending_cycle[e] = (int.from_bytes(raw[4:6], "little"), int.from_bytes(raw[16:24], "little"))
+                if fid == TLM_STATUS:
+                    cycle_info[e].append(pending_cycle.get(e, (None, None)))
+                    per_el[e].append([])     # TLM_STATUS closes the cycle's decision
+    return per_el, cycle_info, steps, lost
+
+
+def decode_diff(db, fid, a, b):
+    try:
+        m = db.get_message_by_frame_id(fid)
+        da = m.decode(a, decode_choices=False)
+        dbb = m.decode(b, decode_choices=False)
+        return {k: (da[k], dbb.get(k)) for k in da if da[k] != dbb.get(k)}
+    except Exception as exc:                 # an undecodable frame is still a difference
+        return {"raw": (a.hex(), b.hex()), "decode": str(exc)}
+
+
+def first_difference(db, a, b, info_a, cycles):
+    for e in sorted(set(a) | set(b)):
+        ca, cb = a.get(e, [[]])[:-1], b.get(e, [[]])[:-1]   # closed cycles only
+        n = min(len(ca), len(cb))
+        if cycles:
+            n = min(n, cycles)
+        for k in range(n):
+            if ca[k] == cb[k]:
+                continue
+            interval, start = info_a.get(e, [])[k] if k < len(info_a.get(e, [])) else (None, None)
+            out = {"electrode": e, "cycle_index": k, "interval_id": interval,
+                   "start_time_s": None if start is None else start / 1e6}
+            for j, (fa, fb) in enumerate(zip(ca[k], cb[k])):
+                if fa != fb:
+                    out["frame"] = PER_ELECTRODE.get(fa[0], hex(fa[0])) if fa[0] == fb[0] else \
+                        f"{PER_ELECTRODE.get(fa[0], hex(fa[0]))} vs {PER_ELECTRODE.get(fb[0], hex(fb[0]))}"
+                    out["frame_index"] = j
+                    if fa[0] == fb[0]:
+                        out["fields"] = decode_diff(db, fa[0], fa[1], fb[1])
+                    return out
+            out["frame"] = f"frame count {len(ca[k])} vs {len(cb[k])}"
+            return out
+    return None
+
+
+def all_differences(db, a, b, cycles):
+    """(frame.field -> cycles in which it differs), differing cycles in total."""
+    fields, n_cycles = defaultdict(int), 0
+    for e in sorted(set(a) | set(b)):
+        ca, cb = a.get(e, [[]])[:-1], b.get(e, [[]])[:-1]
+        n = min(len(ca), len(cb)) if not cycles else min(len(ca), len(cb), cycles)
+        for k in range(n):
+            if ca[k] == cb[k]:
+                continue
+            n_cycles += 1
+            seen = set()
+            if len(ca[k]) != len(cb[k]):
+                seen.add("frame count")
+            for fa, fb in zip(ca[k], cb[k]):
+                if fa == fb:
+                    continue
+                if fa[0] != fb[0]:
+                    seen.add("frame order")
+                    continue
+                for name in decode_diff(db, fa[0], fa[1], fb[1]):
+                    seen.add(f"{PER_ELECTRODE.get(fa[0], hex(fa[0]))}.{name}")
+            for name in seen:
+                fields[name] += 1
+    return dict(fields), n_cycles
+
+
+def load_report(path):
+    with open(path) as f:
+        r = json.load(f)
+    r.pop("bus", None)
+    for e in r.get("electrodes", []):
+        e.pop("cost", None)
+    return r
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("a")
+    ap.add_argument("b")
+    ap.add_argument("--cycles", type=int, default=0, help="compare the first N cycles of every electrode")
+    ap.add_argument("--dbc", default=DBC)
+    ap.add_argument("--json", help="write the verdict here")
+    args = ap.parse_args(argv)
+    import cantools
+    db = cantools.database.load_file(args.dbc)
+    try:
+        fa, info_a, steps_a, lost_a = read_frames(os.path.join(args.a, "candump.log"))
+        fb, _, steps_b, lost_b = read_frames(os.path.join(args.b, "candump.log"))
+    except OSError as exc:
+        print(f"compare_sessions: {exc}", file=sys.stderr)
+        return 2
+    counts = {e: (len(fa.get(e, [[]])) - 1, len(fb.get(e, [[]])) - 1) for e in sorted(set(fa) | set(fb))}
+    diff = first_difference(db, fa, fb, info_a, args.cycles)
+    n_steps = min(len(steps_a), len(steps_b))
+    step_diff = next((i for i in range(n_steps) if steps_a[i] != steps_b[i]), None)
+    fields, n_diff = all_differences(db, fa, fb, args.cycles)
+    verdict = {"cycles": {str(e): c for e, c in counts.items()}, "first_difference": diff,
+               "differing_cycles": n_diff, "differing_fields": fields,
+               "sim_step_difference": step_diff, "heartbeat_lost_emcy": [lost_a, lost_b]}
+    rep_same = None
+    ra, rb = os.path.join(args.a, "report.json"), os.path.join(args.b, "report.json")
+    if not args.cycles and os.path.exists(ra) and os.path.exists(rb):
+        a_rep, b_rep = load_report(ra), load_report(rb)
+        rep_same = a_rep == b_rep
+        if not rep_same:
+            ja, jb = json.dumps(a_rep, indent=1).splitlines(), json.dumps(b_rep, indent=1).splitlines()
+            verdict["report_lines"] = [f"{x.strip()}  <->  {y.strip()}" for x, y in zip(ja, jb) if x != y]
+    verdict["report_same"] = rep_same
+    print(f"compare_sessions: cycles per electrode (A, B): {counts}; controller heartbeat-loss EMCYs: "
+          f"A {lost_a}, B {lost_b}")
+    if diff is None and step_diff is None:
+        print("compare_sessions: every decision frame of the compared cycles is identical "
+              "(TLM_STATUS cost fields aside)")
+    else:
+        if diff is not None:
+            print(f"compare_sessions: FIRST DIFFERENCE: electrode {diff['electrode']}, cycle #{diff['cycle_index']}, "
+                  f"interval {diff['interval_id']} starting at {diff['start_time_s']} s: {diff['frame']} "
+                  f"{diff.get('fields', '')}")
+        if step_diff is not None:
+            print(f"compare_sessions: SIM_STEP #{step_diff} differs")
+        print(f"compare_sessions: {n_diff} cycles differ; by frame.field (cycles): {fields}")
+    if rep_same is not None:
+        print(f"compare_sessions: report.json {'identical' if rep_same else 'DIFFERENT'} apart from bus and cost")
+        for line in verdict.get("report_lines", [])[:20]:
+            print(f"  {line}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(verdict, f, indent=2, default=str)
+            f.write("\n")
+    same = diff is None and step_diff is None and rep_same is not False
+    return 0 if same else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
