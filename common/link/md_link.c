@@ -10,14 +10,17 @@ _Static_assert(MD_LINK_PACKET_MAX == 72u, "6 header bytes, 64 data bytes, 2 CRC 
 
 uint16_t md_link_crc16(const uint8_t *p, size_t n)
 {
-    uint16_t crc = 0xFFFFu;
+    /* CRC-16/CCITT-FALSE, computed in 32 bits and masked (no narrowing
+     * conversion inside the loop for -Wconversion at any optimisation level). */
+    uint32_t crc = 0xFFFFu;
     for (size_t i = 0u; i < n; ++i) {
-        crc = (uint16_t)(crc ^ (uint16_t)((uint16_t)p[i] << 8));
+        crc ^= (uint32_t)p[i] << 8;
         for (unsigned b = 0u; b < 8u; ++b) {
-            crc = ((crc & 0x8000u) != 0u) ? (uint16_t)((uint16_t)(crc << 1) ^ 0x1021u) : (uint16_t)(crc << 1);
+            const uint32_t shifted = (crc << 1) & 0xFFFFu;
+            crc = ((crc & 0x8000u) != 0u) ? (shifted ^ 0x1021u) : shifted;
         }
     }
-    return crc;
+    return (uint16_t)crc;
 }
 
 /* Appends one byte, stuffed; the caller has checked the room (2 bytes). */
