@@ -193,10 +193,16 @@ static void udp_room_member(md_bus_sock_t *s, uint64_t inode, uint32_t rmem, uin
     }
 }
 
+/// NLMSG_DATA without casting away const (clang's -Wcast-qual).
+static const void *nlmsg_payload(const struct nlmsghdr *nlh)
+{
+    return (const uint8_t *)nlh + NLMSG_HDRLEN;
+}
+
 /// One message of the dump: a UDP socket; only members of our group and port count.
 static void udp_room_msg(md_bus_sock_t *s, const struct nlmsghdr *nlh, in_addr_t group, udp_room_t *room)
 {
-    const struct inet_diag_msg *m = NLMSG_DATA(nlh);
+    const struct inet_diag_msg *m = (const struct inet_diag_msg *)nlmsg_payload(nlh);
     if (nlh->nlmsg_len < NLMSG_LENGTH(sizeof *m) || m->id.idiag_sport != htons(s->port) ||
         m->id.idiag_src[0] != group) {
         return;
@@ -274,7 +280,7 @@ static int udp_room(md_bus_t *bus, udp_room_t *room)
                 return 0;
             }
             if (h->nlmsg_type == NLMSG_ERROR) {
-                const struct nlmsgerr *e = NLMSG_DATA(h);
+                const struct nlmsgerr *e = (const struct nlmsgerr *)nlmsg_payload(h);
                 return (e->error != 0) ? e->error : -EPROTO;
             }
             udp_room_msg(s, h, group, room);
