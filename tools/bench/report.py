@@ -196,7 +196,7 @@ def main() -> int:
     w("")
     w("Quality guard, MHTC (docs/tracking-eval.md, 5 scenarios; final-lineage ID consistency / spurious tracks, "
       "then online): seeds 1-3 before the perf work 0.741 / 15, 0.683 / 23; with SQUAREM (3b5717d) 0.741 / 14, "
-      "0.691 / 24, which every change of the fourth session but the warm start reproduces exactly; now, with the "
+      "0.691 / 24, which every change of the performance work but the warm start reproduces exactly; now, with the "
       "warm start of split classes, 0.737 / 15, 0.681 / 24. Seeds 4-6 (held out): before the perf work 0.708 / 13, "
       "0.676 / 24; 3b5717d 0.743 / 13, 0.686 / 27; now 0.743 / 13, 0.678 / 27. Closed loop "
       "(`tools/eval/run_suite.py --scenarios single_neuron --trackers 0 --seeds 18 --max-duration-s 300`, then "
