@@ -75,6 +75,7 @@ static void mhtc_cfg_from(const md_params_t *p, mhtc_config_t *cfg)
     const double q = md_params_get(p, MD_P_MHTC_Q_UV);
     cfg->q_process = q * q; /* µV² per waveform sample and interval (§4.4.2) */
     cfg->init_var = q * q;
+    cfg->unimodal_ratio = md_params_get(p, MD_P_MHTC_UNIMODAL_RATIO);
 }
 
 /* Tunables take effect at the start of a cycle; an inconsistent set (e.g.

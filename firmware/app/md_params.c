@@ -4,6 +4,8 @@
 
 #include <math.h>
 
+#include "tracking/mhtc.h"
+
 #define RO_LIVE ((uint8_t)(MD_PARAM_F_READ_ONLY | MD_PARAM_F_LIVE | MD_PARAM_F_INTEGER))
 #define U32_MAX_D 4294967295.0
 
@@ -76,6 +78,10 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                         "MHTC process noise std per waveform sample and interval"},
     [MD_P_TRACKER] = {0x2041u, "tracker", "", 0.0, 3.0, 0.0, MD_PARAM_F_CONFIG | MD_PARAM_F_INTEGER,
                       "tracker: 0 MHTC, 1 MAP-NN, 2 ML-NN, 3 GNN baseline (a change restarts the tracks)"},
+    [MD_P_MHTC_UNIMODAL_RATIO] = {0x2042u, "mhtc_unimodal_ratio", "", 0.0, 1.0, MHTC_UNIMODAL_RATIO_DEFAULT,
+                                  MD_PARAM_F_CONFIG,
+                                  "clustering (every tracker): a model whose clusters include a pair with this "
+                                  "ridgeline ratio or more (one mode) is dropped; 0 keeps every model"},
     [MD_P_GUARD_ENABLE] = {0x2050u, "guard_enable", "", 0.0, 1.0, 0.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
                            "approach guard limits motion (0: it is computed and reported, never applied)"},
     [MD_P_GUARD_GROWTH_STOP] = {0x2051u, "guard_growth_stop", "1/um", 0.001, 1.0, 0.022, MD_PARAM_F_MOTION,

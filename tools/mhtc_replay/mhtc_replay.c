@@ -8,7 +8,7 @@
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
 ///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
-///          [--warm-jeffreys J | --no-warm-start] [--quiet]
+///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--quiet]
 /// Writes OUT/labels.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -44,6 +44,7 @@ typedef struct {
     double em_tol;
     int quiet;
     double warm_jeffreys;
+    double unimodal_ratio;
 } rp_options_t;
 
 /* Large state lives in static storage, as on the controller. */
@@ -85,7 +86,7 @@ static int rp_usage(const char *msg)
     (void)fprintf(stderr,
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
-                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--quiet]\n",
+                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -113,6 +114,7 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
     o->evidence = CLUSTER_EVIDENCE_LAPLACE;
     o->em_tol = 0.0; /* 0: the clustering default */
     o->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
+    o->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
@@ -153,6 +155,8 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
             o->g_max = (size_t)x;
         } else if (strcmp(a, "--warm-jeffreys") == 0) {
             bad = rp_num(v, 0.0, 1e300, &o->warm_jeffreys);
+        } else if (strcmp(a, "--unimodal-ratio") == 0) {
+            bad = rp_num(v, 0.0, 1.0, &o->unimodal_ratio);
         } else if (strcmp(a, "--em-tol") == 0) {
             bad = rp_num(v, 1e-15, 1e-2, &o->em_tol);
         } else if (strcmp(a, "--evidence") == 0) {
@@ -393,15 +397,17 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
                   (unsigned long long)g_conv.non_finite);
     (void)fprintf(f, "  \"intervals\": %u,\n  \"spikes\": %zu,\n  \"q_uv\": %g,\n  \"init_uv\": %g,\n  \"L\": %zu,\n",
                   done, spikes, o->q_uv, o->init_uv, o->L);
+    (void)fprintf(f, "  \"unimodal_ratio\": %g,\n", o->unimodal_ratio);
     (void)fprintf(f, "  \"step_ms_median\": %.3f,\n  \"step_ms_max\": %.3f,\n", (done > 0u) ? g_step_ms[done / 2u] : 0.0,
                   (done > 0u) ? g_step_ms[done - 1u] : 0.0);
     (void)fprintf(f,
                   "  \"stats\": {\"steps\": %u, \"step_errors\": %u, \"models_pruned\": %u, \"models_failed\": %u, "
                   "\"evidence_fallbacks\": %u, \"empty_intervals\": %u, \"dup_pruned\": %u, \"target_overflow\": %u, "
-                  "\"pool_drops\": %u, \"kf_failures\": %u, \"tracks_deleted\": %u, \"murty_solves\": %u},\n",
+                  "\"pool_drops\": %u, \"kf_failures\": %u, \"tracks_deleted\": %u, \"murty_solves\": %u, "
+                  "\"models_oversplit\": %u},\n",
                   s->steps, s->step_errors, s->models_pruned, s->models_failed, s->evidence_fallbacks,
                   s->empty_intervals, s->dup_pruned, s->target_overflow, s->pool_drops, s->kf_failures,
-                  s->tracks_deleted, s->murty_solves);
+                  s->tracks_deleted, s->murty_solves, s->models_oversplit);
     (void)fprintf(f, "  \"track_ids_issued\": %u,\n  \"tracks\": [", g_st.next_id - 1u);
     int first = 1;
     for (uint32_t id = 1u; id < RP_MAX_IDS; ++id) {
@@ -482,6 +488,7 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
         cfg.em.tol = o->em_tol;
     }
     cfg.warm_jeffreys = o->warm_jeffreys;
+    cfg.unimodal_ratio = o->unimodal_ratio;
     if (rp_mkdirs(o->out) != 0) {
         (void)fprintf(stderr, "mhtc-replay: %s: cannot create: %s\n", o->out, strerror(errno));
         return 1;

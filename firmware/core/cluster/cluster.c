@@ -5,6 +5,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "cluster/em_modes.h"
 #include "common/linalg.h"
 
 void cluster_config_default(cluster_config_t *cfg, cluster_method_t method)
@@ -19,6 +20,7 @@ void cluster_config_default(cluster_config_t *cfg, cluster_method_t method)
     cfg->lambda_new = EM_LAMBDA_NEW;
     cfg->lambda_false = EM_LAMBDA_FALSE;
     cfg->shape_prior_width = EM_SHAPE_PRIOR_WIDTH;
+    cfg->unimodal_ratio = 0.0;
 }
 
 md_status_t cluster_model_prior_forget(const double *prev, size_t m_count, double alpha,
@@ -55,6 +57,7 @@ static bool cluster_args_ok(const cluster_config_t *cfg, const cluster_input_t *
                        (cfg->evidence == CLUSTER_EVIDENCE_BIC);
     return method_ok && ev_ok && (cfg->g_max >= 1u) && (cfg->g_max <= EM_G_MAX) &&
            (cfg->lambda_new + cfg->lambda_false > 0.0) && (cfg->shape_prior_width > 0.0) &&
+           (cfg->unimodal_ratio >= 0.0) && (cfg->unimodal_ratio <= 1.0) &&
            (in->data.y != NULL) && (in->data.d >= 1u) && (in->data.d <= EM_D_MAX) &&
            (in->data.n <= EM_N_MAX) && (in->noise_cov != NULL) && (in->n_targets <= EM_J_MAX) &&
            ((in->targets != NULL) || (in->n_targets == 0u)) &&
@@ -139,6 +142,13 @@ static void cluster_fit_one(const cluster_config_t *cfg, const cluster_input_t *
     const md_status_t fs = em_fit(&in->data, &ws->outlier, &ws->prior, ws->seed, g, &cfg->em,
                                   ws->z, &m->fit);
     if ((fs != MD_OK) && (fs != MD_E_NOCONVERGE)) {
+        return;
+    }
+    bool one_mode = false;
+    if ((cfg->unimodal_ratio > 0.0) &&
+        ((em_params_oversplit(&m->fit.params, cfg->unimodal_ratio, &one_mode) != MD_OK) || one_mode)) {
+        m->fit.status = MD_E_DEGENERATE;
+        m->fit.reason = EM_FAIL_ONE_MODE;
         return;
     }
     em_labels(ws->z, in->data.n, g, m->labels);

@@ -45,6 +45,8 @@ typedef struct {
     double lambda_new;         ///< λν (Table 4.1: 0.01)
     double lambda_false;       ///< λφ (Table 4.1: 0.015)
     double shape_prior_width;  ///< w_c of the shape prior (em_evidence.h)
+    double unimodal_ratio;     ///< a class with two clusters forming one mode (ridgeline ratio ≥ this,
+                               ///< em_modes.h) is not usable; 0 (the default) keeps every fit
 } cluster_config_t;
 
 /// The data of one interval and what the tracker knows before it.

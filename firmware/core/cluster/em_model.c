@@ -230,6 +230,7 @@ const char *em_reason_name(em_reason_t reason)
     case EM_FAIL_NOCONVERGE: return "EM_FAIL_NOCONVERGE";
     case EM_FAIL_HESSIAN: return "EM_FAIL_HESSIAN";
     case EM_FAIL_NOT_RUN: return "EM_FAIL_NOT_RUN";
+    case EM_FAIL_ONE_MODE: return "EM_FAIL_ONE_MODE";
     default: return "EM_FAIL_UNKNOWN";
     }
 }

@@ -53,7 +53,8 @@ typedef enum {
     EM_FAIL_NUMERIC,         ///< a non-finite value or a failed factorisation
     EM_FAIL_NOCONVERGE,      ///< iteration bound reached; parameters are the last (monotone) iterate
     EM_FAIL_HESSIAN,         ///< Hessian of the log-posterior not positive definite: no Laplace evidence
-    EM_FAIL_NOT_RUN          ///< model class not attempted (G above the configured G_max)
+    EM_FAIL_NOT_RUN,         ///< model class not attempted (G above the configured G_max)
+    EM_FAIL_ONE_MODE         ///< two clusters form one mode (em_modes.h): the class with fewer clusters reads it
 } em_reason_t;
 
 /// Rule for degenerate clusters: a cluster needs a soft count of at least

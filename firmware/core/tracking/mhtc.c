@@ -7,6 +7,7 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "cluster/em_modes.h"
 #include "common/linalg.h"
 #include "tracking/mhtc_internal.h"
 
@@ -42,6 +43,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->gnn_gate_chi2 = 9.21;
     cfg->share_jeffreys = MHTC_SHARE_JEFFREYS_DEFAULT;
     cfg->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
+    cfg->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
 }
 
 md_status_t mhtc_config_check(const mhtc_config_t *c)
@@ -61,7 +63,7 @@ md_status_t mhtc_config_check(const mhtc_config_t *c)
                     isfinite(c->init_var) && (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) &&
                     (c->em.tol > 0.0) && (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) &&
                     (c->gnn_gate_chi2 > 0.0) && (c->share_jeffreys >= 0.0) && isfinite(c->share_jeffreys) &&
-                    (c->warm_jeffreys >= 0.0) &&
+                    (c->warm_jeffreys >= 0.0) && (c->unimodal_ratio >= 0.0) && (c->unimodal_ratio <= 1.0) &&
                     ((c->evidence == CLUSTER_EVIDENCE_LAPLACE) || (c->evidence == CLUSTER_EVIDENCE_BIC));
     return ok ? MD_OK : MD_E_ARG;
 }
@@ -222,14 +224,33 @@ static size_t mhtc_warm_donor(const mhtc_state_t *st, const mhtc_workspace_t *ws
     return MHTC_NO_SLOT;
 }
 
+/* A fit with two clusters that form one mode (em_modes.h) reads one neuron as two; the class
+ * with fewer clusters is the reading of that interval. A ratio that cannot be computed drops the
+ * fit too (its shapes are not SPD, so its evidence would fail as well). */
+static bool mhtc_oversplit(mhtc_state_t *st, const em_params_t *params)
+{
+    if (!(st->cfg.unimodal_ratio > 0.0) || (params->g < 2u)) {
+        return false;
+    }
+    bool split = false;
+    if (em_params_oversplit(params, st->cfg.unimodal_ratio, &split) != MD_OK) {
+        return true;
+    }
+    if (split) {
+        st->stats.models_oversplit++;
+    }
+    return split;
+}
+
 /* Steps 4-5 for one model class: MAP-EM under this parent's prior (ws->cl.prior); labels.
+ * Returns true if the fit was dropped as one mode read as two clusters (counted apart from failures).
  * A class with more clusters than the parent has tracks starts from a warm donor's Θ̂ when
  * there is one: its §3.3.4 seed splits a group at a gap, a heuristic that carries nothing of
  * the parent, and EM then creeps along the split's flat ridge (docs/mhtc.md). A class with at
  * most as many clusters as tracks keeps its seeds: they are the parent's own targets, and
  * warm-starting those too made the interval's hypotheses alike and cost closed-loop ID
  * consistency (docs/tracking-eval.md). */
-static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws,
+static bool mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws,
                            mhtc_model_t *m)
 {
     cluster_workspace_t *c = &ws->cl;
@@ -242,15 +263,19 @@ static void mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, m
     }
     if ((fs != MD_OK) && (fs != MD_E_NOCONVERGE)) {
         if (em_seed_from_targets(data, ws->targets, nt, m->g, &c->seed_ws, c->seed) != MD_OK) {
-            return;
+            return false;
         }
         fs = em_fit(data, &c->outlier, &c->prior, c->seed, m->g, &st->cfg.em, c->z, &m->fit);
     }
     if ((fs != MD_OK) && (fs != MD_E_NOCONVERGE)) {
-        return;
+        return false;
+    }
+    if (mhtc_oversplit(st, &m->fit.params)) {
+        return true;
     }
     em_labels(c->z, data->n, m->g, m->labels);
     m->usable = true; /* P4 follows for every model at once (mhtc_evidence_all) */
+    return false;
 }
 
 /* BIC/2 instead of a Laplace evidence that does not exist (Hessian not PD,
@@ -414,14 +439,15 @@ static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double v
         m->log_p3 = lp3;
         m->ev_src = (uint8_t)ws->n_models;
         const size_t donor = mhtc_donor(ws, donor_first, donor_count, g);
+        bool oversplit = false;
         if (donor != MHTC_NO_SLOT) {
             m->usable = mhtc_reuse_model(st, ws, donor, m);
         } else {
-            mhtc_fit_model(st, data, nt, ws, m);
+            oversplit = mhtc_fit_model(st, data, nt, ws, m);
         }
         m->usable = m->usable && mhtc_associate(st, ws, m, nt);
         if (!m->usable) {
-            st->stats.models_failed++;
+            st->stats.models_failed += oversplit ? 0u : 1u;
             continue;
         }
         ws->n_models++;

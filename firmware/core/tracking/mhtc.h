@@ -60,6 +60,9 @@
 #ifndef MHTC_SHARE_JEFFREYS_DEFAULT
 #define MHTC_SHARE_JEFFREYS_DEFAULT 0.01 ///< default of mhtc_config_t.share_jeffreys (docs/mhtc.md)
 #endif
+#ifndef MHTC_UNIMODAL_RATIO_DEFAULT
+#define MHTC_UNIMODAL_RATIO_DEFAULT 0.8  ///< default of mhtc_config_t.unimodal_ratio (docs/mhtc.md)
+#endif
 #ifndef MHTC_WARM_JEFFREYS_DEFAULT
 #define MHTC_WARM_JEFFREYS_DEFAULT HUGE_VAL ///< default of mhtc_config_t.warm_jeffreys (docs/mhtc.md)
 #endif
@@ -105,6 +108,8 @@ typedef struct {
                                  ///< MHTC_SHARE_PD) reuses that parent's EM fits, re-evaluated under its
                                  ///< own prior (ζ, log-posterior, evidence, associations); 0 = exact
                                  ///< sharing only (MHTC_SHARE_JEFFREYS_DEFAULT)
+    double unimodal_ratio;       ///< a model class whose clusters include a pair with one mode (ridgeline ratio
+                                 ///< ≥ this, em_modes.h) splits one neuron: not a hypothesis; 0 = keep every fit
     double warm_jeffreys;        ///< warm start (docs/mhtc.md): a parent's model class G > J (its tracks) that
                                  ///< is fitted starts EM from the fit of class G of an earlier parent whose
                                  ///< targets each match one of its own within this symmetric KL divergence
@@ -161,6 +166,7 @@ typedef struct {
     uint32_t murty_solves;     ///< LAP solves inside Murty (benchmark figure)
     uint32_t models_shared;    ///< model hypotheses copied from a parent with the same track records (no EM)
     uint32_t models_reused;    ///< model hypotheses reusing a similar parent's EM fit (share_jeffreys)
+    uint32_t models_oversplit; ///< fits dropped: two clusters with one mode between them (unimodal_ratio)
     uint32_t models_warm;      ///< EM fits started from another parent's fit (warm_jeffreys)
 } mhtc_stats_t;
 

@@ -126,6 +126,7 @@ static md_status_t mhtc_baseline_cluster(const mhtc_state_t *st, const mhtc_inpu
     cc.lambda_false = st->cfg.lambda_false;
     cc.shape_prior_width = st->cfg.shape_prior_width;
     cc.evidence = ml ? CLUSTER_EVIDENCE_BIC : st->cfg.evidence;
+    cc.unimodal_ratio = st->cfg.unimodal_ratio;
     const cluster_input_t ci = {{in->y, in->n, in->basis->d}, in->noise_cov, ws->targets, nt, NULL};
     const md_status_t rc = cluster_fit_models(&cc, &ci, &ws->cl, &ws->clr);
     if ((rc != MD_OK) || (ws->clr.best_g == 0u)) {
