@@ -354,7 +354,7 @@ static void test_cycles_move_safely_with_telemetry(void)
 {
     boot();
     md_controller_t *c = md_controller_instance();
-    run(40u);
+    run(50u); /* rounds: recording, processing and the servo moves the SFSM asks for */
     const md_electrode_t *el = &c->cycle.el[0];
     TEST_ASSERT_GREATER_OR_EQUAL_UINT(4u, el->cycles);
     TEST_ASSERT_EQUAL_UINT32(el->cycles, P.tlm_status);   /* one TLM_STATUS per cycle */

@@ -443,6 +443,56 @@ static void test_one_mode_is_one_track(void)
     TEST_ASSERT_GREATER_THAN_UINT32(0u, oversplit);
 }
 
+/* Neuron 1 at a fixed amplitude scale (no jitter beyond the noise). */
+static void add_scaled_spikes(double scale, size_t count)
+{
+    for (size_t k = 0u; (k < count) && (g_n < N_MAX); ++k, ++g_n) {
+        for (size_t i = 0u; i < DW; ++i) {
+            g_wave[g_n][i] = scale * template_at(1, i) + NOISE_SD * md_rng_gauss(&g_rng);
+        }
+        g_truth[g_n] = 1u;
+    }
+}
+
+/* Neuron 1 shows as two separate groups for two intervals (at 1 and 0.75 of its amplitude:
+ * two modes, two tracks), then as one group between them (0.875). Returns the leading hypothesis' track count at the end and
+ * neuron 1's ID before the split and at the end. */
+static size_t split_then_rejoin(double unimodal_ratio, int32_t *id_before, int32_t *id_after)
+{
+    start(MHTC_TRACKER_MHTC, 31u);
+    g_st.cfg.unimodal_ratio = unimodal_ratio;
+    for (size_t k = 0u; k < 9u; ++k) {
+        memset(g_truth, 0, sizeof g_truth);
+        add_outliers(4u);
+        add_spikes(2, 50u);
+        if ((k == 3u) || (k == 4u)) {
+            add_scaled_spikes(1.0, 50u);
+            add_scaled_spikes(0.75, 50u);
+        } else {
+            add_scaled_spikes((k < 3u) ? 1.0 : 0.875, 100u);
+        }
+        TEST_ASSERT_EQUAL_INT(MD_OK, run_interval());
+        *id_before = (k == 2u) ? id_of(1) : *id_before;
+    }
+    *id_after = id_of(1);
+    return g_out.n_tracks;
+}
+
+/* A missed track that forms one mode with a detected track of its hypothesis is the same
+ * neuron's second track: it leaves the hypothesis and the neuron keeps its older ID. Without
+ * the rule the stale track is still there (K_miss = 5) at the end. */
+static void test_second_track_of_a_neuron_merges_into_the_older(void)
+{
+    int32_t before = -2, after = -2;
+    TEST_ASSERT_EQUAL_size_t(3u, split_then_rejoin(0.0, &before, &after));
+    const uint32_t merged0 = g_st.stats.tracks_merged;
+    TEST_ASSERT_EQUAL_UINT32(0u, merged0);
+    TEST_ASSERT_EQUAL_size_t(2u, split_then_rejoin(MHTC_UNIMODAL_RATIO_DEFAULT, &before, &after));
+    TEST_ASSERT_TRUE(before > 0);
+    TEST_ASSERT_EQUAL_INT32(before, after);
+    TEST_ASSERT_GREATER_THAN_UINT32(0u, g_st.stats.tracks_merged);
+}
+
 static void test_empty_interval_and_bad_input(void)
 {
     start(MHTC_TRACKER_MHTC, 5u);
@@ -576,6 +626,7 @@ int main(void)
     RUN_TEST(test_similar_priors_reuse_fits);
     RUN_TEST(test_warm_start_same_leading_hypothesis);
     RUN_TEST(test_one_mode_is_one_track);
+    RUN_TEST(test_second_track_of_a_neuron_merges_into_the_older);
     RUN_TEST(test_empty_interval_and_bad_input);
     RUN_TEST(test_baselines_run_and_nn_loses_silent_neuron);
     RUN_TEST(test_int16_input_equals_double_input);

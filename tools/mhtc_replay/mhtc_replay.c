@@ -8,7 +8,7 @@
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
 ///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
-///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--quiet]
+///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--quiet]
 /// Writes OUT/labels.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -45,6 +45,7 @@ typedef struct {
     int quiet;
     double warm_jeffreys;
     double unimodal_ratio;
+    double n_scan;
 } rp_options_t;
 
 /* Large state lives in static storage, as on the controller. */
@@ -86,7 +87,7 @@ static int rp_usage(const char *msg)
     (void)fprintf(stderr,
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
-                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--quiet]\n",
+                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -115,6 +116,7 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
     o->em_tol = 0.0; /* 0: the clustering default */
     o->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
     o->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
+    o->n_scan = (double)MHTC_N_SCAN_DEFAULT;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
@@ -155,6 +157,8 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
             o->g_max = (size_t)x;
         } else if (strcmp(a, "--warm-jeffreys") == 0) {
             bad = rp_num(v, 0.0, 1e300, &o->warm_jeffreys);
+        } else if (strcmp(a, "--n-scan") == 0) {
+            bad = rp_num(v, 0.0, (double)(MHTC_HIST_MAX - 1u), &o->n_scan) || (fabs(o->n_scan - floor(o->n_scan)) > 0.0);
         } else if (strcmp(a, "--unimodal-ratio") == 0) {
             bad = rp_num(v, 0.0, 1.0, &o->unimodal_ratio);
         } else if (strcmp(a, "--em-tol") == 0) {
@@ -404,10 +408,10 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
                   "  \"stats\": {\"steps\": %u, \"step_errors\": %u, \"models_pruned\": %u, \"models_failed\": %u, "
                   "\"evidence_fallbacks\": %u, \"empty_intervals\": %u, \"dup_pruned\": %u, \"target_overflow\": %u, "
                   "\"pool_drops\": %u, \"kf_failures\": %u, \"tracks_deleted\": %u, \"murty_solves\": %u, "
-                  "\"models_oversplit\": %u},\n",
+                  "\"models_oversplit\": %u, \"tracks_merged\": %u, \"nscan_pruned\": %u},\n",
                   s->steps, s->step_errors, s->models_pruned, s->models_failed, s->evidence_fallbacks,
                   s->empty_intervals, s->dup_pruned, s->target_overflow, s->pool_drops, s->kf_failures,
-                  s->tracks_deleted, s->murty_solves, s->models_oversplit);
+                  s->tracks_deleted, s->murty_solves, s->models_oversplit, s->tracks_merged, s->nscan_pruned);
     (void)fprintf(f, "  \"track_ids_issued\": %u,\n  \"tracks\": [", g_st.next_id - 1u);
     int first = 1;
     for (uint32_t id = 1u; id < RP_MAX_IDS; ++id) {
@@ -489,6 +493,7 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
     }
     cfg.warm_jeffreys = o->warm_jeffreys;
     cfg.unimodal_ratio = o->unimodal_ratio;
+    cfg.n_scan = (uint32_t)o->n_scan;
     if (rp_mkdirs(o->out) != 0) {
         (void)fprintf(stderr, "mhtc-replay: %s: cannot create: %s\n", o->out, strerror(errno));
         return 1;

@@ -9,26 +9,22 @@
 
 /* One component's inverse covariance and the constant of its log density. */
 typedef struct {
-    double inv[EM_D_MAX * EM_D_MAX]; /* Σ_g⁻¹ = C_g⁻¹ / λ */
-    double log_c;                     /* log π_g − ½ log det Σ_g (the 2π term cancels in the ratio) */
+    double inv[EM_D_MAX * EM_D_MAX]; /* Σ⁻¹ */
+    double log_c;                     /* log w − ½ log det Σ (the 2π term cancels in the ratio) */
 } ridge_comp_t;
 
-static md_status_t ridge_comp(const em_params_t *p, size_t g, ridge_comp_t *c)
+static md_status_t ridge_comp(size_t d, double w, const double *cov, ridge_comp_t *c)
 {
-    const size_t d = p->d;
     double work[EM_D_MAX * EM_D_MAX];
-    double logdet_c = 0.0;
-    if (linalg_spd_inverse(p->shape[g], d, c->inv, work, &logdet_c) != MD_OK) {
+    double logdet = 0.0;
+    if (linalg_spd_inverse(cov, d, c->inv, work, &logdet) != MD_OK) {
         return MD_E_NUMERIC;
     }
-    for (size_t i = 0u; i < d * d; ++i) {
-        c->inv[i] /= p->lambda;
-    }
-    c->log_c = log(p->pi[g]) - 0.5 * (logdet_c + (double)d * log(p->lambda));
+    c->log_c = log(w) - 0.5 * logdet;
     return isfinite(c->log_c) ? MD_OK : MD_E_NUMERIC;
 }
 
-/* log of π_g N(x; μ_g, Σ_g) up to the shared 2π constant. */
+/* log of w N(x; μ, Σ) up to the shared 2π constant. */
 static double ridge_log_density(const ridge_comp_t *c, const double *mu, const double *x, size_t d)
 {
     double q = 0.0;
@@ -68,39 +64,9 @@ static double log_add(double u, double v)
     return hi + log1p(exp(lo - hi));
 }
 
-static bool ridge_args_ok(const em_params_t *p, size_t a, size_t b)
+/* exp of the deepest point of logf below the lower of the highest values on its two sides. */
+static double ridge_dip(const double *logf)
 {
-    return (p != NULL) && (p->d >= 1u) && (p->d <= EM_D_MAX) && (p->g <= EM_G_MAX) && (a >= 1u) &&
-           (b >= 1u) && (a <= p->g) && (b <= p->g) && (a != b) && (p->lambda > 0.0) && isfinite(p->lambda) &&
-           (p->pi[a - 1u] > 0.0) && (p->pi[b - 1u] > 0.0);
-}
-
-md_status_t em_ridge_ratio(const em_params_t *p, size_t a, size_t b, double *ratio)
-{
-    if ((ratio == NULL) || !ridge_args_ok(p, a, b)) {
-        return MD_E_ARG;
-    }
-    *ratio = 0.0;
-    const size_t d = p->d;
-    ridge_comp_t ca;
-    ridge_comp_t cb;
-    if ((ridge_comp(p, a - 1u, &ca) != MD_OK) || (ridge_comp(p, b - 1u, &cb) != MD_OK)) {
-        return MD_E_NUMERIC;
-    }
-    double logf[EM_RIDGE_POINTS];
-    for (size_t k = 0u; k < EM_RIDGE_POINTS; ++k) {
-        double x[EM_D_MAX];
-        const double alpha = (double)k / (double)(EM_RIDGE_POINTS - 1u);
-        if (ridge_point(&ca, p->mean[a - 1u], &cb, p->mean[b - 1u], d, alpha, x) != MD_OK) {
-            return MD_E_NUMERIC;
-        }
-        logf[k] = log_add(ridge_log_density(&ca, p->mean[a - 1u], x, d),
-                          ridge_log_density(&cb, p->mean[b - 1u], x, d));
-        if (!isfinite(logf[k])) {
-            return MD_E_NUMERIC;
-        }
-    }
-    /* deepest point below the lower of the highest values on its two sides */
     double right_max[EM_RIDGE_POINTS];
     right_max[EM_RIDGE_POINTS - 1u] = logf[EM_RIDGE_POINTS - 1u];
     for (size_t k = EM_RIDGE_POINTS - 1u; k > 0u; --k) {
@@ -112,8 +78,58 @@ md_status_t em_ridge_ratio(const em_params_t *p, size_t a, size_t b, double *rat
         left_max = fmax(left_max, logf[k]);
         dip = fmin(dip, logf[k] - fmin(left_max, right_max[k]));
     }
-    *ratio = exp(dip);
+    return exp(dip);
+}
+
+md_status_t em_gauss_ridge_ratio(size_t d, double w_a, const double *m_a, const double *c_a, double w_b,
+                                 const double *m_b, const double *c_b, double *ratio)
+{
+    if ((ratio == NULL) || (m_a == NULL) || (c_a == NULL) || (m_b == NULL) || (c_b == NULL) || (d < 1u) ||
+        (d > EM_D_MAX) || !(w_a > 0.0) || !(w_b > 0.0) || !isfinite(w_a) || !isfinite(w_b) ||
+        !linalg_all_finite(m_a, d) || !linalg_all_finite(m_b, d)) {
+        return MD_E_ARG;
+    }
+    *ratio = 0.0;
+    ridge_comp_t ca;
+    ridge_comp_t cb;
+    if ((ridge_comp(d, w_a, c_a, &ca) != MD_OK) || (ridge_comp(d, w_b, c_b, &cb) != MD_OK)) {
+        return MD_E_NUMERIC;
+    }
+    double logf[EM_RIDGE_POINTS];
+    for (size_t k = 0u; k < EM_RIDGE_POINTS; ++k) {
+        double x[EM_D_MAX];
+        const double alpha = (double)k / (double)(EM_RIDGE_POINTS - 1u);
+        if (ridge_point(&ca, m_a, &cb, m_b, d, alpha, x) != MD_OK) {
+            return MD_E_NUMERIC;
+        }
+        logf[k] = log_add(ridge_log_density(&ca, m_a, x, d), ridge_log_density(&cb, m_b, x, d));
+        if (!isfinite(logf[k])) {
+            return MD_E_NUMERIC;
+        }
+    }
+    *ratio = ridge_dip(logf);
     return MD_OK;
+}
+
+static bool ridge_args_ok(const em_params_t *p, size_t a, size_t b)
+{
+    return (p != NULL) && (p->d >= 1u) && (p->d <= EM_D_MAX) && (p->g <= EM_G_MAX) && (a >= 1u) &&
+           (b >= 1u) && (a <= p->g) && (b <= p->g) && (a != b) && (p->lambda > 0.0) && isfinite(p->lambda);
+}
+
+md_status_t em_ridge_ratio(const em_params_t *p, size_t a, size_t b, double *ratio)
+{
+    if ((ratio == NULL) || !ridge_args_ok(p, a, b)) {
+        return MD_E_ARG;
+    }
+    const size_t d = p->d;
+    double ca[EM_D_MAX * EM_D_MAX];
+    double cb[EM_D_MAX * EM_D_MAX];
+    for (size_t i = 0u; i < d * d; ++i) {
+        ca[i] = p->lambda * p->shape[a - 1u][i]; /* Σ_g = λ C_g */
+        cb[i] = p->lambda * p->shape[b - 1u][i];
+    }
+    return em_gauss_ridge_ratio(d, p->pi[a - 1u], p->mean[a - 1u], ca, p->pi[b - 1u], p->mean[b - 1u], cb, ratio);
 }
 
 md_status_t em_params_oversplit(const em_params_t *p, double min_ratio, bool *oversplit)

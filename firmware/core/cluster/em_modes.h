@@ -29,6 +29,12 @@
 
 #define EM_RIDGE_POINTS 41u ///< α grid on [0, 1] (a step of 0.025)
 
+/// Ridgeline ratio in (0, 1] of w_a N(m_a, c_a) + w_b N(m_b, c_b) in d ≤ EM_D_MAX
+/// dimensions (c_*: row-major d × d covariances, SPD; weights > 0).
+/// MD_E_ARG on bad arguments, MD_E_NUMERIC if a covariance is not SPD.
+md_status_t em_gauss_ridge_ratio(size_t d, double w_a, const double *m_a, const double *c_a, double w_b,
+                                 const double *m_b, const double *c_b, double *ratio);
+
 /// Ridgeline ratio in (0, 1] of components a and b (1-based cluster
 /// numbers, a ≠ b, both ≤ p->g) of the fitted parameters p. The weights are
 /// the pair's own π_a, π_b; the outlier component and the other clusters are

@@ -24,11 +24,13 @@ void sx_config_default(sx_config_t *cfg, uint32_t sample_rate_hz)
     cfg->guard = (uint32_t)cfg->d_w;
     cfg->seed = 1u;
     cfg->spacing = (uint32_t)lround(10.0 * fs / (4.0 * 128.0));
+    cfg->subsample = true;
 }
 
 static int sx_config_valid(const sx_config_t *c)
 {
     return (c->d_w >= 4u) && (c->d_w <= MD_WAVE_LEN_MAX) && (c->pre_peak < c->d_w) && (c->realign <= 1000u) &&
+           (!c->subsample || (c->pre_peak >= 1u)) &&
            (c->gain > 0.0) && isfinite(c->gain) && (c->n_noise <= MD_MAX_NOISE_SNIPPETS) &&
            (c->guard <= 100000u) && (c->spacing <= SD_MAX_INTERVAL_SAMPLES);
 }
@@ -59,9 +61,57 @@ static uint32_t sx_copy16(const sd_view_t *v, uint32_t start, size_t d_w, int32_
     return clipped;
 }
 
+static double sx_at(const sd_view_t *v, uint32_t i)
+{
+    return (double)v->x[i & v->mask];
+}
+
+/* Offset δ ∈ [−½, ½] of the vertex of the parabola through x[t−1], x[t], x[t+1]
+ * (0 if t is not a strict local minimum of the three). */
+static double sx_trough_offset(const sd_view_t *v, uint32_t t)
+{
+    const double a = sx_at(v, t - 1u);
+    const double b = sx_at(v, t);
+    const double c = sx_at(v, t + 1u);
+    const double curv = a - 2.0 * b + c;
+    if (!(curv > 0.0)) {
+        return 0.0;
+    }
+    const double d = 0.5 * (a - c) / curv;
+    return (d < -0.5) ? -0.5 : ((d > 0.5) ? 0.5 : d);
+}
+
+/* The window resampled at start + j + δ by Keys' cubic convolution (a = −½),
+ * offset removed, into row16 (rounded, saturated) or rowd (times gain). */
+static uint32_t sx_resample(const sd_view_t *v, uint32_t start, double delta, const sx_config_t *c, int32_t offset,
+                            int16_t *row16, double *rowd)
+{
+    const uint32_t base = (delta < 0.0) ? (start - 1u) : start;
+    const double f = (delta < 0.0) ? (1.0 + delta) : delta;
+    uint32_t clipped = 0u;
+    for (size_t j = 0u; j < c->d_w; ++j) {
+        const uint32_t i = base + (uint32_t)j;
+        const double p0 = sx_at(v, i - 1u);
+        const double p1 = sx_at(v, i);
+        const double p2 = sx_at(v, i + 1u);
+        const double p3 = sx_at(v, i + 2u);
+        const double y = p1 + 0.5 * f * ((p2 - p0) + f * ((2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) +
+                                                             f * (3.0 * (p1 - p2) + p3 - p0)));
+        const double r = nearbyint(y - (double)offset); /* whole counts on both paths: they agree exactly */
+        if (rowd != NULL) {
+            rowd[j] = c->gain * (r + 0.0); /* + 0.0: no negative zero, as the int16 path */
+        } else {
+            clipped += ((r < (double)INT16_MIN) || (r > (double)INT16_MAX)) ? 1u : 0u;
+            row16[j] = (int16_t)((r < (double)INT16_MIN) ? INT16_MIN : ((r > (double)INT16_MAX) ? INT16_MAX : r));
+        }
+    }
+    return clipped;
+}
+
 /* Realigns t to the first minimum within +-realign (thesis: align by the
  * waveform minimum) and copies the window, offset removed, into row16
- * (saturated, *clipped counts saturations) or rowd (times gain). */
+ * (saturated, *clipped counts saturations) or rowd (times gain); with
+ * c->subsample the window is resampled on the sub-sample minimum. */
 static sx_cut_t sx_cut(const sd_view_t *v, uint32_t t, const sx_config_t *c, int32_t offset, int16_t *row16,
                        double *rowd, uint32_t *t_out, uint32_t *clipped)
 {
@@ -69,12 +119,17 @@ static sx_cut_t sx_cut(const sd_view_t *v, uint32_t t, const sx_config_t *c, int
         t = sd_view_argmin(v, (t > c->realign) ? (t - c->realign) : 0u, t + c->realign);
     }
     *t_out = t;
-    if ((t < c->pre_peak) || ((uint64_t)t - c->pre_peak + c->d_w > (uint64_t)v->hi)) {
+    const uint32_t m = c->subsample ? SX_INTERP_MARGIN : 0u;
+    if ((t < c->pre_peak + m) || ((uint64_t)t - c->pre_peak + c->d_w + m > (uint64_t)v->hi)) {
         return SX_CUT_EDGE;
     }
     const uint32_t start = t - (uint32_t)c->pre_peak;
-    if (start < v->lo) {
+    if (start - m < v->lo) {
         return SX_CUT_LOST;
+    }
+    if (c->subsample) {
+        *clipped += sx_resample(v, start, sx_trough_offset(v, t), c, offset, row16, rowd);
+        return SX_CUT_OK;
     }
     if (rowd != NULL) {
         for (size_t j = 0u; j < c->d_w; ++j) {
@@ -181,7 +236,7 @@ md_status_t sx_stream_init(sx_stream_t *sx, const sx_config_t *cfg, const sd_str
     /* a window (with realignment) or a candidate's guard zone must still be in
      * the delay line when the detector lets it go */
     const uint64_t need = (uint64_t)sd_stream_latency(det) + cfg->pre_peak + cfg->d_w + 2u * cfg->realign +
-                          cfg->guard + SX_SERVICE_MAX + SD_STEP_SAMPLES;
+                          2u * SX_INTERP_MARGIN + cfg->guard + SX_SERVICE_MAX + SD_STEP_SAMPLES;
     if (need > SD_RING_SAMPLES) {
         return MD_E_ARG;
     }
@@ -197,7 +252,7 @@ static void sx_service_spikes(sx_stream_t *sx, const sd_events_t *ev, const sd_v
     const sx_config_t *c = &sx->cfg;
     for (size_t k = 0u; (k < MD_MAX_SPIKES) && (sx->ev_cursor < ev->n); ++k) {
         const uint32_t t = ev->t[sx->ev_cursor];
-        const uint64_t need = (uint64_t)t + c->realign + c->d_w; /* >= last sample of the window + 1 */
+        const uint64_t need = (uint64_t)t + c->realign + c->d_w + (c->subsample ? SX_INTERP_MARGIN : 0u); /* >= last sample read + 1 */
         if (!final && (need > (uint64_t)v->hi + c->pre_peak)) {
             break; /* its samples have not all arrived */
         }
@@ -241,6 +296,7 @@ static void sx_noise_take(sx_stream_t *sx, const sd_events_t *ev, const sd_view_
     uint32_t t_unused = 0u, clipped = 0u;
     sx_config_t c = sx->cfg;
     c.realign = 0u;
+    c.subsample = false; /* noise windows are cut as they are */
     (void)sx_cut(v, s + (uint32_t)c.pre_peak, &c, ev->offset, z->wave[slot], NULL, &t_unused, &clipped);
     z->start[slot] = s;
     z->n = (slot >= z->n) ? (slot + 1u) : z->n;
@@ -382,6 +438,7 @@ md_status_t sx_extract_noise(const int16_t *x, size_t n, const sd_events_t *ev, 
     sx_pick_init(&p, cfg);
     sx_config_t c = *cfg;
     c.realign = 0u;
+    c.subsample = false; /* noise windows are cut as they are */
     out->n = 0u;
     out->d_w = cfg->d_w;
     out->n_rejected = 0u;

@@ -45,7 +45,10 @@ typedef struct {
     uint32_t guard;    ///< a noise window keeps this many samples clear of every detection
     uint64_t seed;     ///< seed of the snippet positions (deterministic)
     uint32_t spacing;  ///< mean gap between snippet candidates, samples (appended in round two)
+    bool subsample;    ///< align spike windows on the sub-sample minimum (below); noise snippets are never shifted
 } sx_config_t;
+
+#define SX_INTERP_MARGIN 2u ///< samples the sub-sample resampling reads on each side of a window
 
 #define SX_FLAG_OVERFLOW 0x1u     ///< the detector overflowed: not every spike of the interval is here
 #define SX_FLAG_NOISE_SHORT 0x2u  ///< fewer noise snippets than requested could be placed
@@ -111,7 +114,19 @@ typedef struct {
 /// the thesis' window), pre_peak = round(0.4 ms * fs) (8 at 20 kHz), no
 /// realignment, gain 1, 128 noise snippets, guard d_w, seed 1, candidate
 /// spacing 10 s * fs / (4 * 128) (four candidates per wanted snippet in a
-/// 10 s interval; set it for other interval lengths).
+/// 10 s interval; set it for other interval lengths), sub-sample alignment on.
+///
+/// Sub-sample alignment: the thesis aligns windows on the sample of the
+/// minimum, so a spike whose true trough falls between two samples is cut up
+/// to half a sample early or late. For a sharp trough that shift is a large
+/// change of the window's samples, and at 30 kHz it splits one neuron into a
+/// centred cluster and two shifted side clusters in PCA space (as many
+/// tracks). With `subsample` the trough is located between samples by the
+/// parabola through the minimum and its two neighbours, δ ∈ [−½, ½], and the
+/// window is resampled at t + δ with Keys' cubic convolution (a = −½; four
+/// samples, exact for quadratics), as interpolated alignment does in spike
+/// sorting (Blanche & Swindale 2006). `t` stays the sample of the minimum.
+/// A window then needs SX_INTERP_MARGIN more samples on each side.
 void sx_config_default(sx_config_t *cfg, uint32_t sample_rate_hz);
 
 /// Binds the caller's outputs and checks that windows and guard fit the

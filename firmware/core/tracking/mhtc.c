@@ -33,6 +33,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->pd.b = 4.0;
     cfg->beta = 0.001;
     cfg->k_miss = 5u;
+    cfg->n_scan = MHTC_N_SCAN_DEFAULT;
     cfg->nn_k_miss = 1u;
     cfg->q_process = MHTC_Q_DEFAULT_UV2;
     cfg->init_var = MHTC_Q_DEFAULT_UV2;
@@ -58,7 +59,7 @@ md_status_t mhtc_config_check(const mhtc_config_t *c)
     const bool ok = tracker_ok && pd_ok && (c->L >= 1u) && (c->L <= MHTC_L_MAX) && (c->g_max >= 1u) &&
                     (c->g_max <= MHTC_G_MAX) && (c->lambda_new > 0.0) && (c->lambda_false > 0.0) &&
                     (c->beta >= 0.0) && (c->beta < 1.0) && (c->k_miss >= 1u) &&
-                    (c->k_miss <= MHTC_HIST_MAX) && (c->nn_k_miss >= 1u) && (c->nn_k_miss <= MHTC_HIST_MAX) &&
+                    (c->k_miss <= MHTC_HIST_MAX) && (c->n_scan < MHTC_HIST_MAX) && (c->nn_k_miss >= 1u) && (c->nn_k_miss <= MHTC_HIST_MAX) &&
                     (c->q_process > 0.0) && isfinite(c->q_process) && (c->init_var > 0.0) &&
                     isfinite(c->init_var) && (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) &&
                     (c->em.tol > 0.0) && (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) &&
@@ -139,8 +140,7 @@ static bool mhtc_input_ok(const mhtc_state_t *st, const mhtc_input_t *in, const 
     return true;
 }
 
-/* Σ_j (waveform space, rank ≤ d) seen through B^k, with a small ridge so it stays SPD. */
-static void mhtc_map_sigma(const mhtc_track_t *t, const double *h, size_t d, size_t dw, double *c)
+void mhtc_map_sigma(const mhtc_track_t *t, const double *h, size_t d, size_t dw, double *c)
 {
     double hu[KF_D_MAX][KF_D_MAX];
     for (size_t i = 0u; i < t->sigma_rank; ++i) {

@@ -60,6 +60,9 @@
 #ifndef MHTC_SHARE_JEFFREYS_DEFAULT
 #define MHTC_SHARE_JEFFREYS_DEFAULT 0.01 ///< default of mhtc_config_t.share_jeffreys (docs/mhtc.md)
 #endif
+#ifndef MHTC_N_SCAN_DEFAULT
+#define MHTC_N_SCAN_DEFAULT 3u ///< default of mhtc_config_t.n_scan (docs/mhtc.md)
+#endif
 #ifndef MHTC_UNIMODAL_RATIO_DEFAULT
 #define MHTC_UNIMODAL_RATIO_DEFAULT 0.8  ///< default of mhtc_config_t.unimodal_ratio (docs/mhtc.md)
 #endif
@@ -95,6 +98,8 @@ typedef struct {
     mhtc_pd_rule_t pd;           ///< P_d,max 0.98, P_d,min 0.75, a 0.6, b 4
     double beta;                 ///< model-class pruning threshold on P3 (0.001)
     uint32_t k_miss;             ///< consecutive misses before deletion, 1..MHTC_HIST_MAX (5)
+    uint32_t n_scan;             ///< N-scan pruning: the hypotheses of interval k share their ancestor of
+                                 ///< interval k − n_scan, the leading one's; 0 = off, 1..MHTC_HIST_MAX − 1
     uint32_t nn_k_miss;          ///< the same for MAP-NN / ML-NN (1)
     double q_process;            ///< Q = q·I, waveform units² per interval (> 0)
     double init_var;             ///< variance of unmeasured waveform directions of a new track (> 0)
@@ -109,7 +114,9 @@ typedef struct {
                                  ///< own prior (ζ, log-posterior, evidence, associations); 0 = exact
                                  ///< sharing only (MHTC_SHARE_JEFFREYS_DEFAULT)
     double unimodal_ratio;       ///< a model class whose clusters include a pair with one mode (ridgeline ratio
-                                 ///< ≥ this, em_modes.h) splits one neuron: not a hypothesis; 0 = keep every fit
+                                 ///< ≥ this, em_modes.h) splits one neuron: not a hypothesis; and a missed track
+                                 ///< that forms one mode with a detected track of its hypothesis is dropped from
+                                 ///< it (a second track of the same neuron); 0 = neither
     double warm_jeffreys;        ///< warm start (docs/mhtc.md): a parent's model class G > J (its tracks) that
                                  ///< is fitted starts EM from the fit of class G of an earlier parent whose
                                  ///< targets each match one of its own within this symmetric KL divergence
@@ -167,6 +174,8 @@ typedef struct {
     uint32_t models_shared;    ///< model hypotheses copied from a parent with the same track records (no EM)
     uint32_t models_reused;    ///< model hypotheses reusing a similar parent's EM fit (share_jeffreys)
     uint32_t models_oversplit; ///< fits dropped: two clusters with one mode between them (unimodal_ratio)
+    uint32_t nscan_pruned;     ///< hypotheses dropped by N-scan pruning (another ancestor than the leader's)
+    uint32_t tracks_merged;    ///< missed tracks dropped from a hypothesis: one mode with a detected track of it
     uint32_t models_warm;      ///< EM fits started from another parent's fit (warm_jeffreys)
 } mhtc_stats_t;
 

@@ -5,6 +5,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "cluster/em_modes.h"
 #include "common/linalg.h"
 #include "tracking/mhtc_internal.h"
 
@@ -264,9 +265,98 @@ static void mhtc_make_record(mhtc_state_t *st, const mhtc_input_t *in, mhtc_work
     ws->n_staged++;
 }
 
+/* Mean (B^k x̂) and cluster covariance (Σ_j through B^k) of a staged record; its weight n_last. */
+static void mhtc_record_view(const mhtc_track_t *t, const pca_basis_t *b, double *mean, double *cov)
+{
+    for (size_t c = 0u; c < b->d; ++c) {
+        double acc = 0.0;
+        for (size_t q = 0u; q < b->d_w; ++q) {
+            acc += b->b[c * b->d_w + q] * t->kf.x[q];
+        }
+        mean[c] = acc;
+    }
+    mhtc_map_sigma(t, b->b, b->d, b->d_w, cov);
+}
+
+/* Whether missed record `a` and detected record `b` form one mode in B^k (cfg.unimodal_ratio). */
+static bool mhtc_same_mode(const mhtc_state_t *st, const pca_basis_t *b, const mhtc_track_t *a,
+                           const mhtc_track_t *det)
+{
+    double ma[EM_D_MAX], mb[EM_D_MAX], ca[EM_D_MAX * EM_D_MAX], cb[EM_D_MAX * EM_D_MAX];
+    mhtc_record_view(a, b, ma, ca);
+    mhtc_record_view(det, b, mb, cb);
+    const double wa = (a->n_last > 1.0) ? a->n_last : 1.0;
+    const double wb = (det->n_last > 1.0) ? det->n_last : 1.0;
+    double r = 0.0;
+    return (em_gauss_ridge_ratio(b->d, wa, ma, ca, wb, mb, cb, &r) == MD_OK) && (r >= st->cfg.unimodal_ratio);
+}
+
+/* Track h->track[q] (detected, cluster g of model m) replaced by the update of the older
+ * missed track's source record with that cluster: the neuron keeps its older ID in every
+ * lineage that makes this merge. False if the pool has no room (the caller only drops). */
+static bool mhtc_merge_into_older(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_hyp_t *h,
+                                  size_t q, size_t older, int32_t *tag, uint32_t *next_id)
+{
+    const size_t o = h->track[q];
+    const int src = ws->staged_src[older];
+    const int model = ws->staged_model[o];
+    const size_t g = ws->staged_g[o];
+    size_t r = mhtc_find_staged(ws, src, model, g);
+    if (r == ws->n_staged) {
+        if (ws->n_staged >= MHTC_POOL) {
+            return false;
+        }
+        mhtc_make_record(st, in, ws, src, model, g, next_id);
+    }
+    ws->staged[o].refs--;
+    ws->staged[r].refs++;
+    h->track[q] = (uint8_t)r;
+    tag[g - 1u] = (int32_t)ws->staged[r].id;
+    return true;
+}
+
+/* A missed track of hypothesis h that forms one mode with one of h's detected tracks is a
+ * second track of the same neuron: while it lives (K_miss) the association between the two is
+ * decided by noise, and the neuron's ID alternates between them. The pair becomes one track:
+ * the older ID, updated with the detected cluster (mhtc_merge_into_older), or the detected
+ * track alone if it is the older one. Counted; a record no child keeps dies with the
+ * generation. */
+static void mhtc_drop_second_tracks(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_hyp_t *h,
+                                    int32_t *tag, uint32_t *next_id)
+{
+    if (!(st->cfg.unimodal_ratio > 0.0)) {
+        return;
+    }
+    bool drop[MHTC_TARGETS_MAX] = {false};
+    for (size_t j = 0u; j < h->n_tracks; ++j) { /* merges rewrite entries in place; drops are compacted after */
+        const size_t t = h->track[j];
+        size_t twin = MHTC_POOL;
+        for (size_t q = 0u; (q < h->n_tracks) && (twin == MHTC_POOL) && (ws->staged[t].cluster == 0u); ++q) {
+            const mhtc_track_t *o = &ws->staged[h->track[q]];
+            twin = ((o->cluster > 0u) && mhtc_same_mode(st, in->basis, &ws->staged[t], o)) ? q : MHTC_POOL;
+        }
+        if (twin == MHTC_POOL) {
+            continue;
+        }
+        if (ws->staged[t].born < ws->staged[h->track[twin]].born) {
+            (void)mhtc_merge_into_older(st, in, ws, h, twin, t, tag, next_id);
+        }
+        ws->staged[t].refs--;
+        st->stats.tracks_merged++;
+        drop[j] = true;
+    }
+    size_t kept = 0u;
+    for (size_t j = 0u; j < h->n_tracks; ++j) {
+        if (!drop[j]) {
+            h->track[kept++] = h->track[j];
+        }
+    }
+    h->n_tracks = (uint8_t)kept;
+}
+
 /* Builds next hypothesis i from candidate c whose keys are staged; resolves new-track tags to IDs. */
-static void mhtc_build_child(const mhtc_state_t *st, mhtc_workspace_t *ws, const mhtc_cand_t *c, size_t i,
-                             const int *src, const int *model, const uint8_t *g, size_t nk)
+static void mhtc_build_child(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, const mhtc_cand_t *c,
+                             size_t i, const int *src, const int *model, const uint8_t *g, size_t nk, uint32_t *next_id)
 {
     const mhtc_model_t *m = &ws->model[c->model];
     const mhtc_hyp_t *par = mhtc_parent(st, m->parent);
@@ -289,6 +379,7 @@ static void mhtc_build_child(const mhtc_state_t *st, mhtc_workspace_t *ws, const
             tag[g[k] - 1u] = (int32_t)ws->staged[rec].id;
         }
     }
+    mhtc_drop_second_tracks(st, in, ws, h, tag, next_id);
     /* history: this interval first, then the parent's, truncated to MHTC_HIST_MAX */
     const size_t keep = (par->hist_len < MHTC_HIST_MAX) ? par->hist_len : MHTC_HIST_MAX - 1u;
     h->hist_len = (uint8_t)(keep + 1u);
@@ -324,7 +415,7 @@ static size_t mhtc_stage(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspac
                 mhtc_make_record(st, in, ws, src[k], model[k], g[k], next_id);
             }
         }
-        mhtc_build_child(st, ws, &ws->cand[ci], n_next, src, model, g, nk);
+        mhtc_build_child(st, in, ws, &ws->cand[ci], n_next, src, model, g, nk, next_id);
         cand_of_child[n_next++] = (uint8_t)ci;
     }
     return n_next;
@@ -386,6 +477,39 @@ static void mhtc_report(const mhtc_state_t *st, const mhtc_input_t *in, const mh
     }
 }
 
+/* N-scan pruning: only the hypotheses whose ancestor of n_scan intervals ago is the leading
+ * hypothesis' stay (rank_hist[j] names the ancestor j intervals back uniquely within its
+ * generation); their tracks' references go with them, and the survivors are renormalised. A
+ * lineage that parted from the leader's earlier than that can no longer take the lead and
+ * relabel a neuron it has been holding under another ID. */
+static void mhtc_nscan(mhtc_state_t *st)
+{
+    const uint32_t n = st->cfg.n_scan;
+    if ((n == 0u) || (st->n_hyp < 2u) || (st->hyp[0].hist_len <= n)) {
+        return;
+    }
+    const uint8_t anc = st->hyp[0].rank_hist[n];
+    size_t kept = 0u;
+    double lse = -HUGE_VAL;
+    for (size_t i = 0u; i < st->n_hyp; ++i) {
+        const mhtc_hyp_t h = st->hyp[i];
+        if ((h.hist_len > n) && (h.rank_hist[n] != anc)) {
+            for (size_t j = 0u; j < h.n_tracks; ++j) {
+                st->pool[h.track[j]].refs--;
+            }
+            st->stats.nscan_pruned++;
+            continue;
+        }
+        const double a = fmax(lse, h.log_prob);
+        lse = a + log(exp(lse - a) + exp(h.log_prob - a));
+        st->hyp[kept++] = h;
+    }
+    for (size_t i = 0u; i < kept; ++i) {
+        st->hyp[i].log_prob -= lse;
+    }
+    st->n_hyp = kept;
+}
+
 md_status_t mhtc_commit(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_result_t *out)
 {
     uint32_t next_id = st->next_id;
@@ -407,6 +531,7 @@ md_status_t mhtc_commit(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace
         st->hyp[i].log_prob -= lse;
     }
     st->n_hyp = n_next;
+    mhtc_nscan(st);
     st->next_id = next_id;
     st->d_w = in->basis->d_w;
     st->interval++;

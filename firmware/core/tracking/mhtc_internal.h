@@ -33,6 +33,10 @@ md_status_t mhtc_commit(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace
 /// One interval of a single-hypothesis baseline (MAP-NN, ML-NN, GNN): fills ws->cand[0].
 md_status_t mhtc_baseline(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws);
 
+/// Σ_j of record t (waveform space, rank ≤ d) seen through the basis h (d × dw),
+/// with a small ridge so it stays SPD, into c (d × d).
+void mhtc_map_sigma(const mhtc_track_t *t, const double *h, size_t d, size_t dw, double *c);
+
 /// Adds a usable G = 0 model (every track missed) for parent p; returns its slot or MHTC_MODELS_MAX.
 size_t mhtc_empty_model(mhtc_state_t *st, mhtc_workspace_t *ws, size_t p);
 
