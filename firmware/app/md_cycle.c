@@ -106,6 +106,7 @@ static void apply_params(md_electrode_t *el, const md_node_t *node)
         return;
     }
     el->mhtc.cfg.q_process = mc.q_process;
+    el->mhtc.cfg.unimodal_ratio = mc.unimodal_ratio; /* read per fit: safe between intervals */
 }
 
 md_status_t md_cycle_init(md_cycle_t *c, const md_node_t *node)

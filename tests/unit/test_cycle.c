@@ -385,6 +385,23 @@ static void test_cycle_cost_from_the_work_counter(void)
     TEST_ASSERT_EQUAL_INT(0, P.section_open);
 }
 
+/* mhtc_unimodal_ratio (0x2042) reaches the running tracker at the next cycle start, the
+ * tracker kept (its tracks too): it is read per fit. */
+static void test_unimodal_ratio_parameter_reaches_the_tracker(void)
+{
+    boot();
+    md_controller_t *c = md_controller_instance();
+    md_node_t *n = md_controller_node(c);
+    TEST_ASSERT_EQUAL_DOUBLE(MHTC_UNIMODAL_RATIO_DEFAULT, c->cycle.el[0].mhtc.cfg.unimodal_ratio);
+    TEST_ASSERT_EQUAL_INT(MD_PARAM_OUT_OF_RANGE, md_params_set(&n->params, 0x2042u, 1.5));
+    TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x2042u, 0.5));
+    run(20u);
+    const md_electrode_t *el = &c->cycle.el[0];
+    TEST_ASSERT_EQUAL_INT(MHTC_TRACKER_MHTC, el->mhtc.cfg.tracker);
+    TEST_ASSERT_EQUAL_DOUBLE(0.5, el->mhtc.cfg.unimodal_ratio);
+    TEST_ASSERT_GREATER_THAN_UINT(0u, el->mhtc.interval);
+}
+
 static void test_tracker_parameter_selects_baseline(void)
 {
     boot();
@@ -554,6 +571,7 @@ int main(void)
     RUN_TEST(test_cycles_move_safely_with_telemetry);
     RUN_TEST(test_cycle_cost_from_the_work_counter);
     RUN_TEST(test_tracker_parameter_selects_baseline);
+    RUN_TEST(test_unimodal_ratio_parameter_reaches_the_tracker);
     RUN_TEST(test_lockstep_timeout_waits_for_a_live_plant);
     RUN_TEST(test_lockstep_lost_answer_times_out);
     RUN_TEST(test_realtime_timeout_is_platform_time);

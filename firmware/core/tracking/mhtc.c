@@ -412,6 +412,11 @@ static size_t mhtc_donor(const mhtc_workspace_t *ws, size_t first, size_t count,
 }
 
 /* Steps 2-7 for parent p: P3 pruning (eq. 4.11), prior (eq. 4.12), fits, associations.
+ * The first interval has no parent to predict its clusters: eq. 4.32 with no tracks and
+ * λ0 = λν + λφ = 0.025 would allow G = 1 only (G = 2 has P3 ≈ 3·10⁻⁴ < β), and a recording that
+ * starts with three neurons would need three intervals to admit them, one per interval.
+ * There every model class G = 1..g_max gets the same P3 = 1/g_max (no information on the
+ * number of neurons), as the clustering of thesis ch. 3 does without tracking.
  * With a donor range (count > 0), a model class the donor fitted is re-evaluated, not refitted. */
 static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws,
                                size_t p, size_t donor_first, size_t donor_count)
@@ -428,7 +433,9 @@ static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double v
     }
     for (size_t g = 1u; g <= st->cfg.g_max; ++g) {
         double lp3 = 0.0;
-        if ((mhtc_log_p3(pd, nt, g, l0, &lp3) != MD_OK) || !(exp(lp3) > st->cfg.beta)) {
+        if (st->n_hyp == 0u) {
+            lp3 = -log((double)st->cfg.g_max); /* first interval: see mhtc_root_p3 below */
+        } else if ((mhtc_log_p3(pd, nt, g, l0, &lp3) != MD_OK) || !(exp(lp3) > st->cfg.beta)) {
             st->stats.models_pruned++; /* eq. 4.11 */
             continue;
         }
