@@ -474,8 +474,15 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     md_process_out_t po;
     const double duration_s = (double)el->rec_samples / (double)el->sample_rate_hz;
     md_status_t st = (el->rec_status != MD_OK) ? el->rec_status : MD_OK;
+    double here = 0.0;
+    const bool here_ok = (md_servo_depth_um(&el->servo, &here) == MD_OK);
+    el->move_um = (here_ok && el->tracked_depth_ok) ? fabs(here - el->tracked_depth_um) : 0.0;
     if (st == MD_OK) {
         st = md_process_interval(&c->ws, el, duration_s, md_params_get(&node->params, MD_P_MIN_RATE_HZ), &po);
+    }
+    if (st == MD_OK) {
+        el->tracked_depth_um = here;
+        el->tracked_depth_ok = here_ok;
     }
     if (st != MD_OK) {
         el->cost_process = work_end(node, w0);

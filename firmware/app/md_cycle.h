@@ -100,6 +100,9 @@ typedef struct {
     double gain_uv;             ///< µV per ADC count, from FE_INFO
     bool resume;                ///< operator resume (NMT start) not yet seen by the SFSM
     double depth_um;            ///< depth used by the last decision
+    double tracked_depth_um;    ///< depth of the last interval the tracker processed
+    bool tracked_depth_ok;      ///< tracked_depth_um is a measurement
+    double move_um;             ///< travel since that interval (0 if unknown): the tracker's Q grows with it
     double target_um;           ///< requested target of the last decision
     bool has_dominant;
     uint32_t dominant;          ///< dominant track id

@@ -142,7 +142,7 @@ md_status_t md_process_interval(md_workspace_t *ws, md_electrode_t *el, double d
     }
     /* The tracker reads the int16 windows through the gain: no double copy of them. */
     const mhtc_input_t in = {ws->y, ws->n_spikes, NULL, MD_WAVE_LEN_MAX, &ws->basis, ws->xi, duration_s,
-                             &ws->win.wave[0][0], ws->win.gain};
+                             &ws->win.wave[0][0], ws->win.gain, el->move_um};
     st = mhtc_step(&el->mhtc, &in, &ws->u.mhtc, &ws->res);
     if (st != MD_OK) {
         return st;

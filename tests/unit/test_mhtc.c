@@ -81,7 +81,7 @@ static md_status_t run_interval(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(&g_wave[0][0], g_n, DW, DW, D, &g_pw, &g_basis));
     TEST_ASSERT_EQUAL_INT(MD_OK, pca_project_all(&g_basis, &g_wave[0][0], g_n, DW, g_y));
     TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_feature_cov(&g_basis, &g_noise[0][0], N_NOISE, DW, g_xi));
-    const mhtc_input_t in = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0};
+    const mhtc_input_t in = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0, 0.0};
     const md_status_t rc = mhtc_step(&g_st, &in, &g_ws, &g_out);
     g_n = 0u;
     return rc;
@@ -518,7 +518,7 @@ static void test_empty_interval_and_bad_input(void)
     TEST_ASSERT_EQUAL_INT32(id_a, id_of(1));
     /* bad input is rejected and counted, state untouched */
     const uint32_t steps = g_st.stats.steps;
-    mhtc_input_t in = {g_y, 10u, &g_wave[0][0], DW, &g_basis, g_xi, 0.0, NULL, 0.0};
+    mhtc_input_t in = {g_y, 10u, &g_wave[0][0], DW, &g_basis, g_xi, 0.0, NULL, 0.0, 0.0};
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_step(&g_st, &in, &g_ws, &g_out));
     in.duration_s = 10.0;
     g_y[0] = NAN;
@@ -586,8 +586,8 @@ static void test_int16_input_equals_double_input(void)
             }
         }
         TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_feature_cov(&g_basis, &g_noise[0][0], N_NOISE, DW, g_xi));
-        const mhtc_input_t in_d = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0};
-        const mhtc_input_t in_i = {g_y, g_n, NULL, DW, &g_basis, g_xi, 10.0, &g_wave_i16[0][0], gain};
+        const mhtc_input_t in_d = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0, 0.0};
+        const mhtc_input_t in_i = {g_y, g_n, NULL, DW, &g_basis, g_xi, 10.0, &g_wave_i16[0][0], gain, 0.0};
         TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_step(&g_st, &in_d, &g_ws, &g_out));
         TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_step(&g_st_i16, &in_i, &g_ws, &g_out_i16));
         TEST_ASSERT_EQUAL_UINT(g_out.n_tracks, g_out_i16.n_tracks);
@@ -601,7 +601,7 @@ static void test_int16_input_equals_double_input(void)
     }
     TEST_ASSERT_GREATER_OR_EQUAL_UINT(2u, g_out.n_tracks);
     /* An int16 input without a valid gain is refused. */
-    const mhtc_input_t bad = {g_y, g_n, NULL, DW, &g_basis, g_xi, 10.0, &g_wave_i16[0][0], 0.0};
+    const mhtc_input_t bad = {g_y, g_n, NULL, DW, &g_basis, g_xi, 10.0, &g_wave_i16[0][0], 0.0, 0.0};
     TEST_ASSERT_TRUE(mhtc_step(&g_st_i16, &bad, &g_ws, &g_out_i16) < 0);
     g_n = 0u;
 }

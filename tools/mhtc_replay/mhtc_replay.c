@@ -8,7 +8,7 @@
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
 ///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
-///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--quiet]
+///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--q-move K] [--quiet]
 /// Writes OUT/labels.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -46,6 +46,7 @@ typedef struct {
     double warm_jeffreys;
     double unimodal_ratio;
     double n_scan;
+    double q_move;
 } rp_options_t;
 
 /* Large state lives in static storage, as on the controller. */
@@ -87,7 +88,7 @@ static int rp_usage(const char *msg)
     (void)fprintf(stderr,
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
-                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--quiet]\n",
+                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--q-move K] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -117,6 +118,7 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
     o->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
     o->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
     o->n_scan = (double)MHTC_N_SCAN_DEFAULT;
+    o->q_move = MHTC_Q_MOVE_PER_UM_DEFAULT;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
@@ -157,6 +159,8 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
             o->g_max = (size_t)x;
         } else if (strcmp(a, "--warm-jeffreys") == 0) {
             bad = rp_num(v, 0.0, 1e300, &o->warm_jeffreys);
+        } else if (strcmp(a, "--q-move") == 0) {
+            bad = rp_num(v, 0.0, 1.0, &o->q_move);
         } else if (strcmp(a, "--n-scan") == 0) {
             bad = rp_num(v, 0.0, (double)(MHTC_HIST_MAX - 1u), &o->n_scan) || (fabs(o->n_scan - floor(o->n_scan)) > 0.0);
         } else if (strcmp(a, "--unimodal-ratio") == 0) {
@@ -494,6 +498,7 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
     cfg.warm_jeffreys = o->warm_jeffreys;
     cfg.unimodal_ratio = o->unimodal_ratio;
     cfg.n_scan = (uint32_t)o->n_scan;
+    cfg.q_move_per_um = o->q_move;
     if (rp_mkdirs(o->out) != 0) {
         (void)fprintf(stderr, "mhtc-replay: %s: cannot create: %s\n", o->out, strerror(errno));
         return 1;
@@ -504,6 +509,7 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
 static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32_t *done, size_t *spikes)
 {
     char err[REC_ERR_MAX];
+    double tracked_depth = NAN; /* depth of the last interval the tracker processed (sidecar depth_um) */
     for (uint32_t k = 0u; k < g_rec.n_intervals; ++k) {
         const rec_interval_t *iv = &g_rec.iv[k];
         const rec_conversion_t before = g_conv;
@@ -522,8 +528,10 @@ static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32
                                   "skipped\n", k);
             continue;
         }
+        /* electrode travel since the last tracked interval, as the controller measures it */
+        const double move = (isfinite(iv->depth_um) && isfinite(tracked_depth)) ? fabs(iv->depth_um - tracked_depth) : 0.0;
         const mhtc_input_t in = {g_y, g_spk.n, &g_spk.wave[0][0], MD_WAVE_LEN_MAX, &g_basis, g_xi, iv->duration_s,
-                                 NULL, 0.0};
+                                 NULL, 0.0, move};
         const double t0 = rp_now_ms();
         const md_status_t st = mhtc_step(&g_st, &in, &g_ws, &g_res);
         const double ms = rp_now_ms() - t0;
@@ -536,6 +544,7 @@ static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32
             return 1;
         }
         g_step_ms[*done] = ms;
+        tracked_depth = iv->depth_um;
         (*done)++;
         *spikes += g_spk.n;
         rp_write_interval(jl, lab, k, iv, ms);

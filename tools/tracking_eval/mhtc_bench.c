@@ -114,7 +114,7 @@ int main(int argc, char **argv)
     size_t models = 0u;
     for (size_t k = 0u; k < B_WARMUP + steps; ++k) {
         b_interval(&rng, k);
-        const mhtc_input_t in = {g_y, B_N, &g_wave[0][0], B_DW, &g_basis, g_xi, 10.0, NULL, 0.0};
+        const mhtc_input_t in = {g_y, B_N, &g_wave[0][0], B_DW, &g_basis, g_xi, 10.0, NULL, 0.0, 0.0};
         const double t0 = b_now_ms();
         const md_status_t st = mhtc_step(&g_st, &in, &g_ws, &g_out);
         const double dt = b_now_ms() - t0;

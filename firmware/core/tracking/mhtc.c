@@ -37,6 +37,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->nn_k_miss = 1u;
     cfg->q_process = MHTC_Q_DEFAULT_UV2;
     cfg->init_var = MHTC_Q_DEFAULT_UV2;
+    cfg->q_move_per_um = MHTC_Q_MOVE_PER_UM_DEFAULT;
     cfg->evidence = (tracker == MHTC_TRACKER_ML_NN) ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
     em_options_default(&cfg->em);
     cfg->shape_prior_width = EM_SHAPE_PRIOR_WIDTH;
@@ -60,7 +61,8 @@ md_status_t mhtc_config_check(const mhtc_config_t *c)
                     (c->g_max <= MHTC_G_MAX) && (c->lambda_new > 0.0) && (c->lambda_false > 0.0) &&
                     (c->beta >= 0.0) && (c->beta < 1.0) && (c->k_miss >= 1u) &&
                     (c->k_miss <= MHTC_HIST_MAX) && (c->n_scan < MHTC_HIST_MAX) && (c->nn_k_miss >= 1u) && (c->nn_k_miss <= MHTC_HIST_MAX) &&
-                    (c->q_process > 0.0) && isfinite(c->q_process) && (c->init_var > 0.0) &&
+                    (c->q_process > 0.0) && isfinite(c->q_process) && (c->init_var > 0.0) && (c->q_move_per_um >= 0.0) &&
+                    isfinite(c->q_move_per_um) &&
                     isfinite(c->init_var) && (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) &&
                     (c->em.tol > 0.0) && (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) &&
                     (c->gnn_gate_chi2 > 0.0) && (c->share_jeffreys >= 0.0) && isfinite(c->share_jeffreys) &&
@@ -120,7 +122,7 @@ static bool mhtc_input_ok(const mhtc_state_t *st, const mhtc_input_t *in, const 
     if ((in == NULL) || (ws == NULL) || (in->basis == NULL) || (in->noise_cov == NULL) ||
         (in->n > EM_N_MAX) || ((in->n > 0u) && ((in->y == NULL) || ((in->wave == NULL) && (in->wave_i16 == NULL)))) ||
         ((in->wave == NULL) && (in->n > 0u) && !(in->wave_gain > 0.0 && isfinite(in->wave_gain))) ||
-        !(in->duration_s > 0.0) || !isfinite(in->duration_s)) {
+        !(in->duration_s > 0.0) || !isfinite(in->duration_s) || !(in->move_um >= 0.0) || !isfinite(in->move_um)) {
         return false;
     }
     const pca_basis_t *b = in->basis;
@@ -168,6 +170,19 @@ void mhtc_map_sigma(const mhtc_track_t *t, const double *h, size_t d, size_t dw,
     }
 }
 
+double mhtc_process_noise(const mhtc_state_t *st, const mhtc_track_t *t, double move_um)
+{
+    const double s = st->cfg.q_move_per_um * move_um;
+    if (!(s > 0.0) || (t->kf.d_w == 0u)) {
+        return st->cfg.q_process;
+    }
+    double ms = 0.0;
+    for (size_t i = 0u; i < t->kf.d_w; ++i) {
+        ms += t->kf.x[i] * t->kf.x[i];
+    }
+    return st->cfg.q_process + s * s * ms / (double)t->kf.d_w;
+}
+
 /* Step 1: eq. 4.7-4.9 and S_j (eq. 4.13) of every live record, once per record. */
 static md_status_t mhtc_predict_pool(const mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws)
 {
@@ -180,7 +195,7 @@ static md_status_t mhtc_predict_pool(const mhtc_state_t *st, const mhtc_input_t 
         }
         kf_state_t kf = t->kf;
         double hlh[EM_D_MAX * EM_D_MAX];
-        if ((kf_predict(&kf, st->cfg.q_process) != MD_OK) ||
+        if ((kf_predict(&kf, mhtc_process_noise(st, t, in->move_um)) != MD_OK) ||
             (kf_measure(&kf, in->basis->b, d, ws->pred_mu[r], hlh) != MD_OK)) {
             return MD_E_NUMERIC;
         }

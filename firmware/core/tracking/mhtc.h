@@ -60,6 +60,9 @@
 #ifndef MHTC_SHARE_JEFFREYS_DEFAULT
 #define MHTC_SHARE_JEFFREYS_DEFAULT 0.01 ///< default of mhtc_config_t.share_jeffreys (docs/mhtc.md)
 #endif
+#ifndef MHTC_Q_MOVE_PER_UM_DEFAULT
+#define MHTC_Q_MOVE_PER_UM_DEFAULT 0.02 ///< default of mhtc_config_t.q_move_per_um (docs/mhtc.md)
+#endif
 #ifndef MHTC_N_SCAN_DEFAULT
 #define MHTC_N_SCAN_DEFAULT 3u ///< default of mhtc_config_t.n_scan (docs/mhtc.md)
 #endif
@@ -103,6 +106,9 @@ typedef struct {
     uint32_t nn_k_miss;          ///< the same for MAP-NN / ML-NN (1)
     double q_process;            ///< Q = q·I, waveform units² per interval (> 0)
     double init_var;             ///< variance of unmeasured waveform directions of a new track (> 0)
+    double q_move_per_um;        ///< electrode travel adds (κ·travel)² × the track's mean squared waveform
+                                 ///< sample to Q (κ = this, relative amplitude change per µm, 1 σ;
+                                 ///< thesis §4.6); 0 = Q independent of travel
     cluster_evidence_t evidence; ///< P4: Laplace (thesis) or BIC
     em_options_t em;             ///< EM iteration bound/tolerance
     double shape_prior_width;    ///< see em_evidence.h
@@ -203,6 +209,7 @@ typedef struct {
     const int16_t *wave_i16;     ///< the same waveforms in ADC units (used when wave is NULL): saves
                                  ///< the MCU a double copy of every window
     double wave_gain;            ///< waveform units (µV) per ADC unit of wave_i16 (> 0)
+    double move_um;              ///< electrode travel since the previous interval, µm (≥ 0; 0 if unknown)
 } mhtc_input_t;
 
 /// Sample q of waveform i of an interval, in waveform units, whichever form it came in.

@@ -224,7 +224,7 @@ static void mhtc_make_record(mhtc_state_t *st, const mhtc_input_t *in, mhtc_work
     const mhtc_config_t *cfg = &st->cfg;
     if (src >= 0) {
         *t = st->pool[src];
-        (void)kf_predict(&t->kf, cfg->q_process); /* eq. 4.7-4.8 (q validated) */
+        (void)kf_predict(&t->kf, mhtc_process_noise(st, t, in->move_um)); /* eq. 4.7-4.8 (q validated) */
     } else {
         memset(t, 0, sizeof *t);
     }
