@@ -8,7 +8,7 @@
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
 ///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
-///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--q-move K] [--quiet]
+///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]
 /// Writes OUT/labels.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -47,6 +47,7 @@ typedef struct {
     double unimodal_ratio;
     double n_scan;
     double q_move;
+    double k_miss;
 } rp_options_t;
 
 /* Large state lives in static storage, as on the controller. */
@@ -88,7 +89,7 @@ static int rp_usage(const char *msg)
     (void)fprintf(stderr,
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
-                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--q-move K] [--quiet]\n",
+                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -119,6 +120,7 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
     o->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
     o->n_scan = (double)MHTC_N_SCAN_DEFAULT;
     o->q_move = MHTC_Q_MOVE_PER_UM_DEFAULT;
+    o->k_miss = 0.0; /* 0: the tracker's default */
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
@@ -159,6 +161,8 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
             o->g_max = (size_t)x;
         } else if (strcmp(a, "--warm-jeffreys") == 0) {
             bad = rp_num(v, 0.0, 1e300, &o->warm_jeffreys);
+        } else if (strcmp(a, "--k-miss") == 0) {
+            bad = rp_num(v, 1.0, (double)MHTC_HIST_MAX, &o->k_miss) || (fabs(o->k_miss - floor(o->k_miss)) > 0.0);
         } else if (strcmp(a, "--q-move") == 0) {
             bad = rp_num(v, 0.0, 1.0, &o->q_move);
         } else if (strcmp(a, "--n-scan") == 0) {
@@ -499,6 +503,9 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
     cfg.unimodal_ratio = o->unimodal_ratio;
     cfg.n_scan = (uint32_t)o->n_scan;
     cfg.q_move_per_um = o->q_move;
+    if (o->k_miss > 0.0) {
+        cfg.k_miss = (uint32_t)o->k_miss;
+    }
     if (rp_mkdirs(o->out) != 0) {
         (void)fprintf(stderr, "mhtc-replay: %s: cannot create: %s\n", o->out, strerror(errno));
         return 1;

@@ -291,6 +291,20 @@ static bool mhtc_same_mode(const mhtc_state_t *st, const pca_basis_t *b, const m
     return (em_gauss_ridge_ratio(b->d, wa, ma, ca, wb, mb, cb, &r) == MD_OK) && (r >= st->cfg.unimodal_ratio);
 }
 
+/* Whether the detected cluster's count says it holds one neuron, not the missed track's neuron
+ * as well: two neurons crossing in feature space make one cluster of both (their counts add up)
+ * for a few intervals, and the missed one must survive to take its own cluster back after. The
+ * reference is the detected track's previous count, or for a new track the missed one's (a new
+ * track of the same neuron has about its count). One neuron: below reference + ½ the missed
+ * track's count. */
+static bool mhtc_one_neuron_count(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t missed, size_t det)
+{
+    const int src = ws->staged_src[det];
+    const double n_miss = ws->staged[missed].n_last;
+    const double ref = (src >= 0) ? st->pool[src].n_last : n_miss;
+    return ws->staged[det].n_last < ref + 0.5 * n_miss;
+}
+
 /* Track h->track[q] (detected, cluster g of model m) replaced by the update of the older
  * missed track's source record with that cluster: the neuron keeps its older ID in every
  * lineage that makes this merge. False if the pool has no room (the caller only drops). */
@@ -333,7 +347,10 @@ static void mhtc_drop_second_tracks(mhtc_state_t *st, const mhtc_input_t *in, mh
         size_t twin = MHTC_POOL;
         for (size_t q = 0u; (q < h->n_tracks) && (twin == MHTC_POOL) && (ws->staged[t].cluster == 0u); ++q) {
             const mhtc_track_t *o = &ws->staged[h->track[q]];
-            twin = ((o->cluster > 0u) && mhtc_same_mode(st, in->basis, &ws->staged[t], o)) ? q : MHTC_POOL;
+            twin = ((o->cluster > 0u) && mhtc_same_mode(st, in->basis, &ws->staged[t], o) &&
+                    mhtc_one_neuron_count(st, ws, t, h->track[q]))
+                       ? q
+                       : MHTC_POOL;
         }
         if (twin == MHTC_POOL) {
             continue;
