@@ -1,10 +1,11 @@
 /// @file md_cycle.h
 /// The autonomous positioning cycle (thesis §2.2, Fig. 2.2), every electrode
 /// independently, one electrode at a time (round robin):
-///   record  REC_REQ; REC_DATA streamed into the detector (sp_push), REC_END;
+///   record  REC_REQ; REC_DATA streamed into the detector (ic_push), REC_END;
 ///   process PCA of the interval's windows, features, noise covariance Ξ,
-///           MHTC step with the interval's basis (md_process.h);
-///   score   per-track SNR, isolation distance of the dominant track;
+///           MHTC step with the interval's basis, per-track SNR, isolation
+///           distance of the dominant track (pipeline/interval_chain.h,
+///           through md_process.h);
 ///   decide  SNR curve (§2.2.3) + SFSM (§2.2.4, Table 2.1);
 ///   move    depth servo to depth + step (md_servo.h), only if the SFSM asked
 ///           and the node allows motion;
@@ -35,16 +36,12 @@
 #include "control/approach_guard.h"
 #include "control/sfsm.h"
 #include "control/snr_curve.h"
-#include "features/pca.h"
 #include "md_config.h"
 #include "md_frame.h"
 #include "md_node.h"
 #include "md_servo.h"
-#include "signal/spike_pipeline.h"
+#include "pipeline/interval_chain.h"
 #include "tracking/mhtc.h"
-
-#define MD_CYCLE_D 2u  ///< PCA feature dimension (thesis: 2-D features)
-_Static_assert(MD_CYCLE_D <= MD_FEAT_DIM_MAX, "feature dimension within the configured capacity");
 
 /// TLM_STATUS Flags bits (docs/controller.md).
 #define MD_TLM_F_SKIPPED 0x0001u          ///< processing failed: cycle skipped, tracks and SFSM kept
@@ -91,7 +88,7 @@ typedef struct {
     uint32_t rec_requested;     ///< NumSamples asked
     uint32_t rec_samples;       ///< samples streamed into the detector
     bool rec_bad;               ///< a frame of this interval was lost or rejected
-    md_status_t rec_status;     ///< first sp_push failure of this interval (MD_OK if none)
+    md_status_t rec_status;     ///< first ic_push failure of this interval (MD_OK if none)
     uint64_t rec_start_us;      ///< cycle time of the interval's first sample
     bool rec_clock_seen;        ///< a SIM_CLOCK arrived since the REC_REQ (lockstep start time)
     bool rec_end_ok;            ///< lockstep: a complete REC_END arrived, the batch's closing SIM_CLOCK not yet
@@ -115,29 +112,9 @@ typedef struct {
     uint32_t cycles, skipped, rec_failed, moves, moves_failed, inhibited, timeouts, guard_limited;
 } md_electrode_t;
 
-/// Outputs of the signal chain of the interval being processed, and the
-/// scratch every stage uses. One for all electrodes.
-typedef struct {
-    /// Stages that never overlap in time share storage: the streaming
-    /// channel (recording), the PCA scratch (fit), the tracker's workspace
-    /// (MHTC step and the labels read after it).
-    union {
-        sp_channel_t sp;
-        pca_work_t pca;
-        mhtc_workspace_t mhtc;
-    } u;
-    sx_windows_t win;                                     ///< aligned spike windows (int16)
-    sx_snippets_t noise;                                  ///< spike-free noise snippets (int16)
-    double y[MD_MAX_SPIKES * MD_CYCLE_D];                 ///< spike features
-    double noise_y[MD_MAX_NOISE_SNIPPETS * MD_CYCLE_D];   ///< noise features (isolation distance)
-    double qm_work[(MD_MAX_SPIKES + MD_MAX_NOISE_SNIPPETS) * MD_CYCLE_D];
-    double xi[MD_CYCLE_D * MD_CYCLE_D];                   ///< Ξ
-    pca_basis_t basis;                                    ///< B^k
-    mhtc_result_t res;                                    ///< leading hypothesis of the interval
-    double track_snr[MHTC_TARGETS_MAX];                   ///< SNR per reported track (0 if missed)
-    double noise_rms_uv;
-    uint32_t n_spikes;                                    ///< spikes given to the tracker
-} md_workspace_t;
+/// The interval being processed and the scratch of every stage
+/// (pipeline/interval_chain.h). One for all electrodes.
+typedef ic_workspace_t md_workspace_t;
 
 /// All cycles and the shared workspace.
 typedef struct {
