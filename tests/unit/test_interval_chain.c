@@ -172,8 +172,8 @@ static void test_stages_in_order(void)
 static void test_configurations_refused(void)
 {
     ic_workspace_t *ws = &g_ws[0];
-    ic_config_t bad[7];
-    for (size_t i = 0u; i < 7u; ++i) {
+    ic_config_t bad[8];
+    for (size_t i = 0u; i < 8u; ++i) {
         bad[i] = config();
     }
     bad[0].sample_rate_hz = 0u;
@@ -181,15 +181,19 @@ static void test_configurations_refused(void)
     bad[2].num_samples = 0u;
     bad[3].guard_top_k = 0u;
     bad[4].guard_top_k = 17u;
-    bad[5].sample_rate_hz = 96000u; /* windows of 1.15 ms: 110 samples > MD_WAVE_LEN_MAX */
-    bad[6].sample_rate_hz = 500u;   /* below the detector's range */
-    for (size_t i = 0u; i < 7u; ++i) {
+    bad[5].sample_rate_hz = 32769u; /* the 250 ms warm-up exceeds SD_WARMUP_MAX samples */
+    bad[6].sample_rate_hz = 7499u;  /* the narrowest wavelet scale's box is under 2 samples */
+    bad[7].sample_rate_hz = 500u;   /* below the detector's range */
+    for (size_t i = 0u; i < 8u; ++i) {
         TEST_ASSERT_EQUAL_INT_MESSAGE(MD_E_ARG, ic_begin(ws, &bad[i]), "configuration accepted");
     }
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ic_begin(ws, NULL));
-    TEST_ASSERT_EQUAL_UINT32(8u, ws->stats.begin_errors);
+    TEST_ASSERT_EQUAL_UINT32(9u, ws->stats.begin_errors);
     TEST_ASSERT_EQUAL_UINT32(0u, ws->stats.intervals);
     TEST_ASSERT_EQUAL_INT(MD_E_STATE, ic_push(ws, g_x, 1u));
+    const ic_config_t edge[2] = {{7500u, GAIN_UV, N_SAMPLES, 1u}, {32768u, GAIN_UV, N_SAMPLES, 16u}};
+    TEST_ASSERT_EQUAL_INT(MD_OK, ic_begin(ws, &edge[0]));
+    TEST_ASSERT_EQUAL_INT(MD_OK, ic_begin(ws, &edge[1]));
 }
 
 /* A flat interval (detection fails) and an interval at another sample rate

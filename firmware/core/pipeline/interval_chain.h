@@ -70,8 +70,9 @@ _Static_assert(MD_MAX_SPIKES <= EM_N_MAX, "every window fits the tracker's input
 
 /// What an interval is (fixed at ic_begin).
 typedef struct {
-    uint32_t sample_rate_hz;  ///< samples per second of the channel (the detector's 1000..200000, and
-                              ///< windows of 1.15 ms must fit MD_WAVE_LEN_MAX samples)
+    uint32_t sample_rate_hz;  ///< samples per second of the channel: 7500..32768 at the detector's
+                              ///< defaults (its narrowest wavelet box >= 2 samples; its 250 ms
+                              ///< warm-up within SD_WARMUP_MAX samples)
     double gain_uv;           ///< µV per ADC count (> 0): windows and features are in µV
     uint32_t num_samples;     ///< samples the interval will have (> 0): N of the detector's universal
                               ///< threshold and the spacing of noise-snippet candidates
