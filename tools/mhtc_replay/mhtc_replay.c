@@ -1,15 +1,18 @@
 /// @file mhtc_replay.c
-/// mhtc-replay: the firmware's interval pipeline run offline over a recorded
-/// signal (thesis ch. 4 ran MHTC offline the same way). Per interval of one
-/// channel: wavelet spike detection, min-aligned windows and noise snippets,
-/// d = 2 PCA basis (H^k), Ξ, one tracker step (mhtc.h; MHTC or a baseline),
-/// then SNR and isolation distance of every track of the leading hypothesis.
+/// mhtc-replay: the controller's interval chain run offline over a recorded
+/// signal (thesis ch. 4 ran MHTC offline the same way). Each interval of one
+/// channel goes, as int16 counts, through pipeline/interval_chain.h, the unit
+/// the controller runs: streaming wavelet detection, min-aligned int16
+/// windows and noise snippets, d = 2 PCA basis (H^k), Ξ, one tracker step
+/// (mhtc.h; MHTC or a baseline), then SNR and isolation distance of every
+/// track of the leading hypothesis. With the controller's tracker parameters
+/// (the defaults) its labels are the controller's.
 ///
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
 ///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
 ///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]
-/// Writes OUT/labels.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
+/// Writes OUT/labels.csv, OUT/labels_online.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -18,14 +21,11 @@
 #include <sys/stat.h>
 #include <time.h>
 
-#include "features/pca.h"
-#include "metrics/quality.h"
+#include "control/approach_guard.h"
+#include "pipeline/interval_chain.h"
 #include "recording.h"
-#include "signal/spike_detect.h"
-#include "signal/spike_extract.h"
 #include "tracking/mhtc.h"
 
-#define RP_D 2u               ///< feature dimension (thesis: 2-D PCA)
 #define RP_Q_UV_DEFAULT 10.0  ///< process-noise std per waveform sample and interval (µV)
 #define RP_MAX_IDS 4096u      ///< distinct track IDs summarised
 #define RP_PATH_MAX REC_PATH_MAX ///< longest output path
@@ -54,19 +54,12 @@ typedef struct {
 static rec_recording_t g_rec;
 static size_t g_cap;              ///< samples of the longest interval (room in x)
 static rec_conversion_t g_conv;   ///< float32 samples clipped / non-finite so far
-static sd_detector_t g_det;
-static sd_events_t g_ev;
-static sx_spikes_t g_spk;
-static sx_noise_t g_noise;
-static pca_work_t g_pw;
-static pca_basis_t g_basis;
-static double g_y[EM_N_MAX * RP_D];
-static double g_noise_y[MD_MAX_NOISE_SNIPPETS * RP_D];
-static double g_qm_work[(EM_N_MAX + MD_MAX_NOISE_SNIPPETS) * RP_D];
-static double g_xi[RP_D * RP_D];
+static uint32_t g_fs_hz;          ///< the chain's sample rate: the recording's, in whole Hz
+static uint8_t g_top_k;           ///< robust amplitude's k (the approach guard's default)
+static uint64_t g_not_kept;       ///< detections beyond the chain's window capacity, all intervals
+static ic_workspace_t g_ws;       ///< the interval chain (as the controller's md_workspace_t)
+static ic_out_t g_out;
 static mhtc_state_t g_st;
-static mhtc_workspace_t g_ws;
-static mhtc_result_t g_res;
 static uint32_t g_id_intervals[RP_MAX_IDS];
 
 /// What one interval's survivors said, kept to relabel by the final best lineage.
@@ -188,45 +181,43 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
     return 0;
 }
 
-/* Signal chain of one interval: events, windows, noise, PCA, features, Ξ. 0 if usable. */
-static int rp_chain(const int16_t *x, size_t n, double fs, double gain)
+/* Detections the chain had no room for (window capacity, delay line): reported, never dropped silently. */
+static void rp_report_not_kept(uint32_t k)
 {
-    g_spk.n = 0u;
-    md_status_t st = sd_restart(&g_det);
-    if (st == MD_OK) {
-        (void)sd_push(&g_det, x, n);
-        st = sd_finish(&g_det, &g_ev);
+    const uint64_t n = (uint64_t)g_ws.win.n_overflow + (uint64_t)g_ws.win.n_lost;
+    if (n > 0u) {
+        (void)fprintf(stderr, "mhtc-replay: %s: interval %u: %llu detection(s) not kept: %u beyond the capacity of %u "
+                              "windows per interval (MD_MAX_SPIKES), %u no longer in the delay line; the controller "
+                              "drops the same\n",
+                      g_rec.json_path, k, (unsigned long long)n, g_ws.win.n_overflow, (unsigned)MD_MAX_SPIKES,
+                      g_ws.win.n_lost);
+        g_not_kept += n;
     }
-    sx_config_t sx;
-    sx_config_default(&sx, (uint32_t)fs);
-    sx.gain = gain;
+}
+
+/* Interval k through the chain up to its features (ic_begin .. ic_features), as
+ * the controller streams it. MD_OK if the tracker can take it; else says why. */
+static md_status_t rp_chain(const int16_t *x, size_t n, uint32_t k)
+{
+    const ic_config_t cfg = {g_fs_hz, g_rec.count_uv, (uint32_t)n, g_top_k};
+    md_status_t st = ic_begin(&g_ws, &cfg);
     if (st == MD_OK) {
-        st = sx_extract_spikes(x, n, &g_ev, &sx, &g_spk);
-    }
-    if (st == MD_OK) {
-        st = sx_extract_noise(x, n, &g_ev, &sx, &g_noise);
-    }
-    if ((st == MD_OK) && (g_noise.n > RP_D)) {
-        /* no spikes: a basis from the noise keeps the tracker's H defined; all tracks are missed */
-        const int spikes = (g_spk.n >= 2u);
-        st = pca_fit(spikes ? &g_spk.wave[0][0] : &g_noise.wave[0][0], spikes ? g_spk.n : g_noise.n,
-                     MD_WAVE_LEN_MAX, sx.d_w, RP_D, &g_pw, &g_basis);
-        if (!spikes) {
-            g_spk.n = 0u;
+        st = ic_push(&g_ws, x, n);
+        if (st != MD_OK) {
+            (void)fprintf(stderr, "mhtc-replay: interval %u: detection failed: %s; skipped\n", k, md_status_name(st));
+            return st;
         }
-    } else if (st == MD_OK) {
-        st = MD_E_DEGENERATE;
     }
-    if ((st == MD_OK) && (g_spk.n > 0u)) {
-        st = pca_project_all(&g_basis, &g_spk.wave[0][0], g_spk.n, MD_WAVE_LEN_MAX, g_y);
-    }
+    st = (st == MD_OK) ? ic_end(&g_ws) : st;
     if (st == MD_OK) {
-        st = pca_project_all(&g_basis, &g_noise.wave[0][0], g_noise.n, MD_WAVE_LEN_MAX, g_noise_y);
+        rp_report_not_kept(k);
+        st = ic_features(&g_ws);
     }
-    if (st == MD_OK) {
-        st = qm_noise_feature_cov(&g_basis, &g_noise.wave[0][0], g_noise.n, MD_WAVE_LEN_MAX, g_xi);
+    if (st != MD_OK) {
+        (void)fprintf(stderr, "mhtc-replay: interval %u: signal chain failed (%s: no noise snippets or basis); "
+                              "skipped\n", k, md_status_name(st));
     }
-    return (st == MD_OK) ? 0 : -1;
+    return st;
 }
 
 static void rp_json_params(FILE *f, const mhtc_result_t *r)
@@ -264,24 +255,17 @@ static void rp_json_track_hyps(FILE *f, const mhtc_result_t *r, uint32_t id)
     (void)fprintf(f, "],\"probability\":%.6g", p);
 }
 
-static void rp_json_tracks(FILE *f, const mhtc_result_t *r, double noise_rms)
+/* Every track of the leading hypothesis: the chain's SNR (ic_score) and isolation distance (ic_isolation). */
+static void rp_json_tracks(FILE *f, const mhtc_result_t *r)
 {
     (void)fprintf(f, ",\"tracks\":[");
     for (size_t j = 0u; j < r->n_tracks; ++j) {
         const mhtc_track_report_t *t = &r->track[j];
-        double snr = 0.0;
+        const double snr = g_ws.track_snr[j];
         qm_isolation_t iso;
         memset(&iso, 0, sizeof iso);
-        if (t->cluster > 0u) {
-            (void)qm_snr(&g_spk.wave[0][0], g_spk.n, MD_WAVE_LEN_MAX, g_spk.d_w, r->labels, t->cluster, noise_rms,
-                         &snr, NULL);
-            double cov[RP_D * RP_D];
-            for (size_t i = 0u; i < RP_D * RP_D; ++i) {
-                cov[i] = r->params.lambda * r->params.shape[t->cluster - 1u][i];
-            }
-            (void)qm_isolation_distance(g_y, g_spk.n, RP_D, r->labels, t->cluster, g_noise_y, g_noise.n,
-                                        r->params.mean[t->cluster - 1u], cov, g_qm_work,
-                                        sizeof g_qm_work / sizeof g_qm_work[0], &iso);
+        if ((t->cluster > 0u) && (ic_isolation(&g_ws, t->cluster, &iso) != MD_OK)) {
+            memset(&iso, 0, sizeof iso);
         }
         (void)fprintf(f, "%s{\"id\":%u,\"cluster\":%u,\"misses\":%u,\"p_detect\":%.4f,\"rate_hz\":%.3f,\"snr\":%.4f,"
                          "\"iqm\":%.4f,\"iqm_defined\":%s,\"mean_feat\":[%.6g,%.6g],",
@@ -310,8 +294,7 @@ static void rp_json_hyps(FILE *f, const mhtc_result_t *r)
 
 static void rp_write_interval(FILE *jl, FILE *lab, uint32_t k, const rec_interval_t *iv, double ms)
 {
-    double noise_rms = 0.0;
-    (void)qm_noise_rms(&g_noise.wave[0][0], g_noise.n, MD_WAVE_LEN_MAX, g_noise.d_w, &noise_rms);
+    const mhtc_result_t *r = &g_ws.res;
     (void)fprintf(jl, "{\"interval\":%u,\"start_sample\":%llu,\"duration_s\":%.6f,", k,
                   (unsigned long long)iv->start_sample, iv->duration_s);
     if (isfinite(iv->depth_um)) {
@@ -320,42 +303,44 @@ static void rp_write_interval(FILE *jl, FILE *lab, uint32_t k, const rec_interva
     if (isfinite(iv->hall_code)) {
         (void)fprintf(jl, "\"hall_code\":%.0f,", iv->hall_code);
     }
-    (void)fprintf(jl, "\"n_spikes\":%zu,\"n_noise\":%zu,\"noise_rms_uv\":%.4f,\"step_ms\":%.3f,", g_spk.n, g_noise.n,
-                  noise_rms, ms);
-    rp_json_params(jl, &g_res);
-    rp_json_tracks(jl, &g_res, (noise_rms > 0.0) ? noise_rms : 1.0);
-    rp_json_hyps(jl, &g_res);
+    (void)fprintf(jl, "\"n_spikes\":%u,\"n_noise\":%zu,\"noise_rms_uv\":%.4f,\"step_ms\":%.3f,", g_ws.n_spikes,
+                  g_ws.noise.n, g_ws.noise_rms_uv, ms);
+    rp_json_params(jl, r);
+    rp_json_tracks(jl, r);
+    rp_json_hyps(jl, r);
     (void)fprintf(jl, "}\n");
-    for (size_t i = 0u; i < g_spk.n; ++i) { /* online: the leading hypothesis of interval k */
-        const uint8_t c = g_res.labels[i];
-        const int id = (c > 0u) ? (int)g_res.cluster_track[c - 1u] : -1;
-        (void)fprintf(lab, "%llu,%u,%u,%d\n", (unsigned long long)(iv->start_sample + g_spk.t[i]), k, c,
+    for (size_t i = 0u; i < g_ws.n_spikes; ++i) { /* online: the leading hypothesis of interval k */
+        const uint8_t c = r->labels[i];
+        const int id = (c > 0u) ? (int)r->cluster_track[c - 1u] : -1;
+        (void)fprintf(lab, "%llu,%u,%u,%d\n", (unsigned long long)(iv->start_sample + g_ws.win.t[i]), k, c,
                       (id > 0) ? id : -1);
     }
-    for (size_t j = 0u; j < g_res.n_tracks; ++j) {
-        if ((g_res.track[j].cluster > 0u) && (g_res.track[j].id < RP_MAX_IDS)) {
-            g_id_intervals[g_res.track[j].id]++;
+    for (size_t j = 0u; j < r->n_tracks; ++j) {
+        if ((r->track[j].cluster > 0u) && (r->track[j].id < RP_MAX_IDS)) {
+            g_id_intervals[r->track[j].id]++;
         }
     }
 }
 
-/* Keeps every survivor's labels of this step (0 on success). */
+/* Keeps every survivor's labels of this step (0 on success). Between ic_track and ic_score:
+ * mhtc_hyp_labels reads the tracker's scratch, which the scoring reuses. */
 static int rp_keep_lineage(rp_lineage_t *l, uint32_t k, uint64_t start)
 {
+    const size_t n = g_ws.n_spikes;
     l->k = k;
     l->start = start;
-    l->n = g_spk.n;
+    l->n = n;
     l->n_hyp = g_st.n_hyp;
-    l->t = malloc((g_spk.n + 1u) * sizeof *l->t);
-    l->labels = malloc((l->n_hyp * g_spk.n + 1u) * sizeof *l->labels);
+    l->t = malloc((n + 1u) * sizeof *l->t);
+    l->labels = malloc((l->n_hyp * n + 1u) * sizeof *l->labels);
     if ((l->t == NULL) || (l->labels == NULL)) {
         return -1;
     }
-    memcpy(l->t, g_spk.t, g_spk.n * sizeof *l->t);
+    memcpy(l->t, g_ws.win.t, n * sizeof *l->t);
     for (size_t h = 0u; h < l->n_hyp; ++h) {
         size_t g = 0u;
         l->parent[h] = g_st.hyp[h].parent;
-        if (mhtc_hyp_labels(&g_st, &g_ws, h, g_spk.n, &l->labels[h * g_spk.n], l->ct[h], &g) != MD_OK) {
+        if (mhtc_hyp_labels(&g_st, &g_ws.u.mhtc, h, n, &l->labels[h * n], l->ct[h], &g) != MD_OK) {
             return -1;
         }
     }
@@ -410,6 +395,13 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
     (void)fprintf(f, "  \"intervals\": %u,\n  \"spikes\": %zu,\n  \"q_uv\": %g,\n  \"init_uv\": %g,\n  \"L\": %zu,\n",
                   done, spikes, o->q_uv, o->init_uv, o->L);
     (void)fprintf(f, "  \"unimodal_ratio\": %g,\n", o->unimodal_ratio);
+    const ic_stats_t *c = &g_ws.stats;
+    (void)fprintf(f, "  \"sample_rate_hz\": %u,\n  \"detections_not_kept\": %llu,\n", g_fs_hz,
+                  (unsigned long long)g_not_kept);
+    (void)fprintf(f, "  \"chain\": {\"intervals\": %u, \"push_errors\": %u, \"end_errors\": %u, \"feature_errors\": %u, "
+                     "\"track_errors\": %u, \"snr_undefined\": %u, \"iso_undefined\": %u},\n",
+                  c->intervals, c->push_errors, c->end_errors, c->feature_errors, c->track_errors, c->snr_undefined,
+                  c->iso_undefined);
     (void)fprintf(f, "  \"step_ms_median\": %.3f,\n  \"step_ms_max\": %.3f,\n", (done > 0u) ? g_step_ms[done / 2u] : 0.0,
                   (done > 0u) ? g_step_ms[done - 1u] : 0.0);
     (void)fprintf(f,
@@ -465,7 +457,41 @@ static int rp_mkdirs(const char *path)
     return 0;
 }
 
-static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
+/* The chain's sample rate and interval lengths: what it cannot take is said (file, interval, reason). 0 if fine. */
+static int rp_check_chain(void)
+{
+    const double fs = g_rec.fs_hz; /* 1000..200000 (recording.h) */
+    g_fs_hz = (uint32_t)llround(fs);
+    if ((fs < (double)g_fs_hz) || (fs > (double)g_fs_hz)) {
+        (void)fprintf(stderr, "mhtc-replay: %s: sampling_frequency %.17g Hz: the chain runs at whole Hz (the "
+                              "controller's FE_INFO carries whole Hz): %u Hz\n", g_rec.json_path, fs, g_fs_hz);
+    }
+    ag_config_t ag;
+    ag_config_default(&ag);
+    g_top_k = ag.top_k;
+    for (uint32_t k = 0u; k < g_rec.n_intervals; ++k) {
+        const uint64_t n = g_rec.iv[k].num_samples;
+        if ((n == 0u) || (n > SD_MAX_INTERVAL_SAMPLES)) {
+            (void)fprintf(stderr, "mhtc-replay: %s: interval %u: %llu samples: the streaming chain takes 1..%u "
+                                  "samples per interval (SD_MAX_INTERVAL_SAMPLES)\n", g_rec.json_path, k,
+                          (unsigned long long)n, (unsigned)SD_MAX_INTERVAL_SAMPLES);
+            return 1;
+        }
+        g_cap = ((size_t)n > g_cap) ? (size_t)n : g_cap;
+    }
+    const ic_config_t probe = {g_fs_hz, g_rec.count_uv, (uint32_t)((g_cap > 0u) ? g_cap : 1u), g_top_k};
+    if (ic_begin(&g_ws, &probe) != MD_OK) {
+        (void)fprintf(stderr, "mhtc-replay: %s: interval 0: sampling_frequency %u Hz is not supported by the "
+                              "firmware's streaming chain, which takes 7500..32768 Hz (spike_detect.h: the narrowest "
+                              "wavelet scale, 0.5 ms, needs a box of 2 samples; the 250 ms statistics warm-up must fit "
+                              "SD_WARMUP_MAX = %u samples)\n", g_rec.json_path, g_fs_hz, (unsigned)SD_WARMUP_MAX);
+        return 1;
+    }
+    memset(&g_ws.stats, 0, sizeof g_ws.stats); /* the probe is no interval */
+    return 0;
+}
+
+static int rp_setup(const rp_options_t *o, int16_t **x)
 {
     char err[REC_ERR_MAX];
     const rec_options_t ro = {o->interval_s, o->channel};
@@ -473,18 +499,12 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
         (void)fprintf(stderr, "mhtc-replay: %s\n", err);
         return 1;
     }
-    uint64_t cap = 0u;
-    for (uint32_t k = 0u; k < g_rec.n_intervals; ++k) {
-        cap = (g_rec.iv[k].num_samples > cap) ? g_rec.iv[k].num_samples : cap;
+    if (rp_check_chain() != 0) {
+        return 1;
     }
-    sd_config_t sdc;
-    sd_config_default(&sdc, SD_METHOD_WAVELET, (uint32_t)g_rec.fs_hz);
-    g_cap = (cap <= SD_MAX_INTERVAL_SAMPLES) ? (size_t)cap : 0u;
     *x = (g_cap > 0u) ? malloc(g_cap * sizeof **x) : NULL;
-    *det_buf = (g_cap > 0u) ? malloc(g_cap * sizeof **det_buf) : NULL;
-    if ((*x == NULL) || (*det_buf == NULL) || (sd_init(&g_det, &sdc, *det_buf, g_cap) != MD_OK)) {
-        (void)fprintf(stderr, "mhtc-replay: %s: interval of %llu samples exceeds the detector (max %u)\n",
-                      o->recording, (unsigned long long)cap, (unsigned)SD_MAX_INTERVAL_SAMPLES);
+    if ((*x == NULL) && (g_cap > 0u)) {
+        (void)fprintf(stderr, "mhtc-replay: out of memory\n");
         return 1;
     }
     mhtc_config_t cfg;
@@ -513,34 +533,40 @@ static int rp_setup(const rp_options_t *o, int16_t **x, int16_t **det_buf)
     return (mhtc_init(&g_st, &cfg) == MD_OK) ? 0 : 1;
 }
 
-static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32_t *done, size_t *spikes)
+/* Reads interval k as int16 counts (float32 converted, clipping and non-finite values reported). 0 if read. */
+static int rp_read(const rp_options_t *o, uint32_t k, int16_t *x)
 {
     char err[REC_ERR_MAX];
+    const rec_conversion_t before = g_conv;
+    if (rec_read_interval(&g_rec, k, o->channel, x, g_cap, &g_conv, err, sizeof err) != MD_OK) {
+        (void)fprintf(stderr, "mhtc-replay: %s\n", err);
+        return 1;
+    }
+    if ((g_conv.clipped > before.clipped) || (g_conv.non_finite > before.non_finite)) {
+        (void)fprintf(stderr, "mhtc-replay: %s: interval %u, channel %u: %llu float32 sample(s) clipped to int16 "
+                              "counts of %g uV, %llu NaN/inf set to 0\n", g_rec.bin_path, k, o->channel,
+                      (unsigned long long)(g_conv.clipped - before.clipped), g_rec.count_uv,
+                      (unsigned long long)(g_conv.non_finite - before.non_finite));
+    }
+    return 0;
+}
+
+static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32_t *done, size_t *spikes)
+{
     double tracked_depth = NAN; /* depth of the last interval the tracker processed (sidecar depth_um) */
     for (uint32_t k = 0u; k < g_rec.n_intervals; ++k) {
         const rec_interval_t *iv = &g_rec.iv[k];
-        const rec_conversion_t before = g_conv;
-        if (rec_read_interval(&g_rec, k, o->channel, x, g_cap, &g_conv, err, sizeof err) != MD_OK) {
-            (void)fprintf(stderr, "mhtc-replay: %s\n", err);
+        if (rp_read(o, k, x) != 0) {
             return 1;
         }
-        if ((g_conv.clipped > before.clipped) || (g_conv.non_finite > before.non_finite)) {
-            (void)fprintf(stderr, "mhtc-replay: %s: interval %u, channel %u: %llu float32 sample(s) clipped to int16 "
-                                  "counts of %g uV, %llu NaN/inf set to 0\n", g_rec.bin_path, k, o->channel,
-                          (unsigned long long)(g_conv.clipped - before.clipped), g_rec.count_uv,
-                          (unsigned long long)(g_conv.non_finite - before.non_finite));
-        }
-        if (rp_chain(x, (size_t)iv->num_samples, g_rec.fs_hz, g_rec.count_uv) != 0) {
-            (void)fprintf(stderr, "mhtc-replay: interval %u: signal chain failed (no noise snippets or basis); "
-                                  "skipped\n", k);
-            continue;
+        if (rp_chain(x, (size_t)iv->num_samples, k) != MD_OK) {
+            continue; /* as the controller: the tracker does not see the interval */
         }
         /* electrode travel since the last tracked interval, as the controller measures it */
-        const double move = (isfinite(iv->depth_um) && isfinite(tracked_depth)) ? fabs(iv->depth_um - tracked_depth) : 0.0;
-        const mhtc_input_t in = {g_y, g_spk.n, &g_spk.wave[0][0], MD_WAVE_LEN_MAX, &g_basis, g_xi, iv->duration_s,
-                                 NULL, 0.0, move};
+        const double move =
+            (isfinite(iv->depth_um) && isfinite(tracked_depth)) ? fabs(iv->depth_um - tracked_depth) : 0.0;
         const double t0 = rp_now_ms();
-        const md_status_t st = mhtc_step(&g_st, &in, &g_ws, &g_res);
+        const md_status_t st = ic_track(&g_ws, &g_st, move);
         const double ms = rp_now_ms() - t0;
         if (st != MD_OK) {
             (void)fprintf(stderr, "mhtc-replay: interval %u: tracker step failed: %s\n", k, md_status_name(st));
@@ -550,14 +576,15 @@ static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32
             (void)fprintf(stderr, "mhtc-replay: out of memory\n");
             return 1;
         }
+        (void)ic_score(&g_ws, &g_out); /* after ic_track it cannot fail */
         g_step_ms[*done] = ms;
         tracked_depth = iv->depth_um;
         (*done)++;
-        *spikes += g_spk.n;
+        *spikes += g_ws.n_spikes;
         rp_write_interval(jl, lab, k, iv, ms);
         if (!o->quiet) {
-            (void)fprintf(stderr, "[%u/%u] spikes %zu clusters %zu tracks %zu hyps %zu (%.1f ms)\n", k + 1u,
-                          g_rec.n_intervals, g_spk.n, g_res.g, g_res.n_tracks, g_res.n_hyp, ms);
+            (void)fprintf(stderr, "[%u/%u] spikes %u clusters %zu tracks %zu hyps %zu (%.1f ms)\n", k + 1u,
+                          g_rec.n_intervals, g_ws.n_spikes, g_ws.res.g, g_ws.res.n_tracks, g_ws.res.n_hyp, ms);
         }
     }
     return 0;
@@ -571,8 +598,7 @@ int main(int argc, char **argv)
         return pa;
     }
     int16_t *x = NULL;
-    int16_t *det_buf = NULL;
-    int rc = rp_setup(&o, &x, &det_buf);
+    int rc = rp_setup(&o, &x);
     FILE *jl = (rc == 0) ? rp_open_out(o.out, "intervals.jsonl") : NULL;
     FILE *lab = (jl != NULL) ? rp_open_out(o.out, "labels_online.csv") : NULL;
     rc = (lab == NULL) ? 1 : rc;
@@ -602,6 +628,5 @@ int main(int argc, char **argv)
         (void)fclose(lab);
     }
     free(x);
-    free(det_buf);
     return rc;
 }
