@@ -10,7 +10,9 @@
 
 #define D IC_D
 
-/* The last stage completed (ic_workspace_t.stage). */
+/* The last stage completed (ic_workspace_t.stage). A stage needs the one
+ * before it; those after IC_ENDED keep their inputs out of the shared union,
+ * so they may run again. */
 #define IC_IDLE 0
 #define IC_RECORDING 1
 #define IC_ENDED 2
@@ -129,7 +131,7 @@ md_status_t ic_features(ic_workspace_t *ws)
     if (ws == NULL) {
         return MD_E_ARG;
     }
-    const md_status_t st = (ws->stage == IC_ENDED) ? features(ws) : MD_E_STATE;
+    const md_status_t st = (ws->stage >= IC_ENDED) ? features(ws) : MD_E_STATE;
     if (st != MD_OK) {
         ws->stats.feature_errors++;
         ws->stage = IC_IDLE;
@@ -145,7 +147,7 @@ md_status_t ic_track(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um)
         return MD_E_ARG;
     }
     md_status_t st = MD_E_STATE;
-    if (ws->stage == IC_FEATURES) {
+    if (ws->stage >= IC_FEATURES) {
         /* The tracker reads the int16 windows through the gain: no double
          * copy of them. Firing rates over the samples actually pushed. */
         const mhtc_input_t in = {ws->y, ws->n_spikes, NULL, MD_WAVE_LEN_MAX, &ws->basis, ws->xi,
@@ -167,7 +169,7 @@ md_status_t ic_isolation(ic_workspace_t *ws, uint8_t cluster, qm_isolation_t *is
     if (ws == NULL || iso == NULL) {
         return MD_E_ARG;
     }
-    if (ws->stage != IC_TRACKED && ws->stage != IC_SCORED) {
+    if (ws->stage < IC_TRACKED) {
         return MD_E_STATE;
     }
     const mhtc_result_t *r = &ws->res;
@@ -220,7 +222,7 @@ md_status_t ic_score(ic_workspace_t *ws, ic_out_t *out)
     if (ws == NULL || out == NULL) {
         return MD_E_ARG;
     }
-    if (ws->stage != IC_TRACKED) {
+    if (ws->stage < IC_TRACKED) {
         return MD_E_STATE;
     }
     memset(out, 0, sizeof *out);

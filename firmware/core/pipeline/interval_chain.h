@@ -25,8 +25,10 @@
 ///     over noise RMS), the dominant track (the highest SNR, §2.2.2.4) and its
 ///     isolation distance ID_g under its fitted Σ_g = λ C_g, noise snippets
 ///     counting as non-members.
-/// ic_process runs 2-5. A call out of this order returns MD_E_STATE; a new
-/// ic_begin may start at any time.
+/// ic_process runs 2-5. A stage before the one it needs returns MD_E_STATE;
+/// stages 3-5 may be run again on the same interval (their inputs stay:
+/// a benchmark repeats them; a second ic_track steps the tracker again); a
+/// new ic_begin may start at any time.
 ///
 /// Memory: ic_workspace_t (about 310 kB at the default capacities of
 /// md_config.h, 218 kB of it the union below) is caller-owned and holds
@@ -149,19 +151,19 @@ md_status_t ic_end(ic_workspace_t *ws);
 /// Basis, features, Ξ, noise RMS and robust amplitude (stage 3).
 /// MD_E_DEGENERATE if there are no more than d noise snippets (Ξ needs more),
 /// else the first error of pca_fit_i16, the projections, Ξ, the noise RMS or
-/// the amplitude. MD_E_STATE if not after ic_end. O(n d_w² + d_w³).
+/// the amplitude. MD_E_STATE before ic_end. O(n d_w² + d_w³).
 md_status_t ic_features(ic_workspace_t *ws);
 
 /// One step of `tracker` with this interval (stage 4): ws->res. `move_um`:
 /// electrode travel since the tracker's previous interval, µm (>= 0; 0 if
 /// unknown; mhtc_input_t.move_um). On an error the tracker is unchanged but
-/// for its step_errors counter. MD_E_STATE if not after ic_features.
+/// for its step_errors counter. MD_E_STATE before ic_features.
 /// O(tracker step, mhtc.h).
 md_status_t ic_track(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um);
 
 /// SNR of every track of ws->res into ws->track_snr, the dominant track and
-/// its isolation distance into *out (stage 5). MD_E_STATE if not after
-/// ic_track. O(n d_w + (n + m) d²).
+/// its isolation distance into *out (stage 5). MD_E_STATE before ic_track.
+/// O(n d_w + (n + m) d²).
 md_status_t ic_score(ic_workspace_t *ws, ic_out_t *out);
 
 /// ic_end, ic_features, ic_track, ic_score: MD_OK or the first error.
