@@ -1,18 +1,19 @@
 /// @file bench_core.c
 /// One electrode cycle as separately runnable stages. See bench_core.h.
-/// The stage bodies follow firmware/app/md_process.c and md_cycle.c (decide)
-/// so that the measured work is the controller's.
+/// The signal chain, tracker and quality stages are the controller's own
+/// unit (pipeline/interval_chain.h, which firmware/app/md_process.c runs),
+/// called stage by stage; control follows md_cycle.c (decide), so that the
+/// measured work is the controller's.
 #include "bench_core.h"
 
 #include <math.h>
 #include <string.h>
 
 #include "cluster/cluster.h"
+#include "control/approach_guard.h"
 #include "control/sfsm.h"
 #include "control/snr_curve.h"
-#include "features/pca.h"
-#include "metrics/quality.h"
-#include "signal/spike_pipeline.h"
+#include "pipeline/interval_chain.h"
 #include "signal/spike_synth.h"
 #include "tracking/mhtc.h"
 
@@ -22,7 +23,6 @@
 #define PEAKS_CAP 1024u
 #define SILENT_RMS 1e-3       /* a neuron-only trace: noise rounds to 0 counts */
 #define DEPTH_STEP_UM 10.0
-#define CANDIDATES_PER_WANTED 4u
 
 /* SNR (peak-to-peak / noise RMS) and rate of the three neurons: 150+100+50 = 300 spikes in 10 s. */
 static const double NEURON_SNR[N_NEURONS] = {10.0, 7.0, 5.0};
@@ -32,39 +32,20 @@ static int16_t g_trace[BENCH_SAMPLES];
 static int16_t g_scratch[BENCH_SAMPLES];
 static uint32_t g_peaks[PEAKS_CAP];
 
-static sp_channel_t g_sp;
-static sx_windows_t g_win;
-static sx_snippets_t g_noise;
-static pca_work_t g_pca;
-static pca_basis_t g_basis;
-static double g_y[MD_MAX_SPIKES * BENCH_D];
-static double g_noise_y[MD_MAX_NOISE_SNIPPETS * BENCH_D];
-static double g_qm_work[(MD_MAX_SPIKES + MD_MAX_NOISE_SNIPPETS) * BENCH_D];
-static double g_xi[BENCH_D * BENCH_D];
-static double g_noise_rms_uv;
-static double g_wave[MD_MAX_SPIKES * MD_WAVE_LEN_MAX];
-static size_t g_n_spikes;
+static ic_workspace_t g_ws;  /* the controller's md_workspace_t */
+static ic_out_t g_out;       /* what quality hands to control (md_process_out_t's fields) */
 
 static cluster_workspace_t g_cl_ws;
 static cluster_result_t g_cl_res;
 
 static mhtc_state_t g_mh;
 static mhtc_state_t g_mh_saved;
-static mhtc_workspace_t g_mh_ws;
-static mhtc_result_t g_mh_res;
 
 static sc_table_t g_curves;
 static sc_table_t g_curves_saved;
 static sfsm_t g_sfsm;
 static sfsm_t g_sfsm_saved;
 static double g_depth_um;
-
-/* What quality hands to control (md_process_out_t's fields). */
-static bool g_has_dominant;
-static uint32_t g_dominant;
-static uint8_t g_dominant_cluster;
-static double g_snr;
-static double g_iqm;
 
 static bench_info_t g_info;
 static int g_ready;
@@ -112,56 +93,24 @@ static md_status_t synth_interval(uint32_t k)
     return MD_OK;
 }
 
-/* As md_process_begin + md_process_push + sp_finish. */
+/* As md_process_begin + md_process_push (REC_DATA frames) + the end of the interval. */
 static md_status_t stage_detect(void)
 {
-    sd_config_t dcfg;
-    sx_config_t xcfg;
-    sd_config_default(&dcfg, SD_METHOD_WAVELET, BENCH_FS_HZ);
-    dcfg.interval_s = (double)BENCH_SECONDS;
-    sx_config_default(&xcfg, BENCH_FS_HZ);
-    xcfg.gain = GAIN_UV;
-    const uint32_t spacing = BENCH_SAMPLES / (CANDIDATES_PER_WANTED * (uint32_t)xcfg.n_noise);
-    xcfg.spacing = (spacing > 0u) ? spacing : 1u;
-    md_status_t st = sp_init(&g_sp, &dcfg, &xcfg, &g_win, &g_noise);
+    ag_config_t ag;
+    ag_config_default(&ag);
+    const ic_config_t cfg = {BENCH_FS_HZ, GAIN_UV, BENCH_SAMPLES, ag.top_k};
+    md_status_t st = ic_begin(&g_ws, &cfg);
     for (size_t i = 0u; st == MD_OK && i < BENCH_SAMPLES; i += BENCH_CHUNK) {
         const size_t n = (BENCH_SAMPLES - i < BENCH_CHUNK) ? (BENCH_SAMPLES - i) : BENCH_CHUNK;
-        st = sp_push(&g_sp, &g_trace[i], n);
+        st = ic_push(&g_ws, &g_trace[i], n);
     }
-    if (st == MD_OK) {
-        st = sp_finish(&g_sp);
-    }
-    return (st == MD_E_DEGENERATE) ? MD_OK : st;
+    return (st == MD_OK) ? ic_end(&g_ws) : st;
 }
 
-/* As md_process.c chain(): basis, features, Ξ, noise RMS, waveforms for the tracker. */
+/* Basis, features, Ξ, noise RMS, robust amplitude. */
 static md_status_t stage_pca(void)
 {
-    const sx_windows_t *w = &g_win;
-    const sx_snippets_t *z = &g_noise;
-    if (z->n <= BENCH_D || w->d_w < BENCH_D || w->n < 2u) {
-        return MD_E_DEGENERATE;
-    }
-    g_n_spikes = w->n;
-    md_status_t st = pca_fit_i16(&w->wave[0][0], w->n, MD_WAVE_LEN_MAX, w->d_w, w->gain, BENCH_D, &g_pca, &g_basis);
-    if (st == MD_OK) {
-        st = pca_project_all_i16(&g_basis, &w->wave[0][0], w->n, MD_WAVE_LEN_MAX, w->gain, g_y);
-    }
-    if (st == MD_OK) {
-        st = pca_project_all_i16(&g_basis, &z->wave[0][0], z->n, MD_WAVE_LEN_MAX, z->gain, g_noise_y);
-    }
-    if (st == MD_OK) {
-        st = qm_noise_feature_cov_i16(&g_basis, &z->wave[0][0], z->n, MD_WAVE_LEN_MAX, z->gain, g_xi);
-    }
-    if (st == MD_OK) {
-        st = qm_noise_rms_i16(&z->wave[0][0], z->n, MD_WAVE_LEN_MAX, z->d_w, z->gain, &g_noise_rms_uv);
-    }
-    for (size_t i = 0u; st == MD_OK && i < g_n_spikes; ++i) {
-        for (size_t q = 0u; q < w->d_w; ++q) {
-            g_wave[i * w->d_w + q] = w->gain * (double)w->wave[i][q];
-        }
-    }
-    return st;
+    return ic_features(&g_ws);
 }
 
 static md_status_t stage_cluster(void)
@@ -172,66 +121,23 @@ static md_status_t stage_cluster(void)
     cfg.g_max = 4u;
     cluster_input_t in;
     memset(&in, 0, sizeof in);
-    in.data.y = g_y;
-    in.data.n = g_n_spikes;
+    in.data.y = g_ws.y;
+    in.data.n = g_ws.n_spikes;
     in.data.d = BENCH_D;
-    in.noise_cov = g_xi;
+    in.noise_cov = g_ws.xi;
     return cluster_fit_models(&cfg, &in, &g_cl_ws, &g_cl_res);
 }
 
+/* One tracker step on the int16 windows, as the controller runs it. */
 static md_status_t stage_mhtc(void)
 {
-    mhtc_input_t in; /* by field: the struct may grow (e.g. int16 waveforms) */
-    memset(&in, 0, sizeof in);
-    in.y = g_y;
-    in.n = g_n_spikes;
-    in.wave = g_wave;
-    in.stride = g_win.d_w;
-    in.basis = &g_basis;
-    in.noise_cov = g_xi;
-    in.duration_s = (double)BENCH_SECONDS;
-    return mhtc_step(&g_mh, &in, &g_mh_ws, &g_mh_res);
+    return ic_track(&g_ws, &g_mh, 0.0); /* no travel: the interval is the same every run */
 }
 
-/* As md_process.c score_tracks() and isolation(). */
+/* SNR of every track, the dominant one and its isolation distance. */
 static md_status_t stage_quality(void)
 {
-    const mhtc_result_t *r = &g_mh_res;
-    double best = -1.0;
-    g_has_dominant = false;
-    g_dominant_cluster = 0u;
-    g_snr = 0.0;
-    g_iqm = 0.0;
-    for (size_t j = 0u; j < r->n_tracks && j < MHTC_TARGETS_MAX; ++j) {
-        double snr = 0.0;
-        const uint8_t cl = r->track[j].cluster;
-        if (cl > 0u && qm_snr_i16(&g_win.wave[0][0], g_n_spikes, MD_WAVE_LEN_MAX, g_win.d_w, g_win.gain, r->labels,
-                                  cl, g_noise_rms_uv, &snr, NULL) != MD_OK) {
-            snr = 0.0;
-        }
-        if (cl > 0u && isfinite(snr) && snr > best) {
-            best = snr;
-            g_has_dominant = true;
-            g_dominant = r->track[j].id;
-            g_dominant_cluster = cl;
-            g_snr = snr;
-        }
-    }
-    if (!g_has_dominant || g_dominant_cluster > r->g) {
-        return MD_OK;
-    }
-    const size_t g = (size_t)g_dominant_cluster - 1u;
-    double cov[BENCH_D * BENCH_D];
-    for (size_t i = 0u; i < BENCH_D * BENCH_D; ++i) {
-        cov[i] = r->params.lambda * r->params.shape[g][i];
-    }
-    qm_isolation_t iso;
-    memset(&iso, 0, sizeof iso);
-    const md_status_t st = qm_isolation_distance(g_y, g_n_spikes, BENCH_D, r->labels, g_dominant_cluster, g_noise_y,
-                                                 g_noise.n, r->params.mean[g], cov, g_qm_work,
-                                                 sizeof g_qm_work / sizeof g_qm_work[0], &iso);
-    g_iqm = (st == MD_OK && iso.defined != 0 && isfinite(iso.id)) ? iso.id : 0.0;
-    return MD_OK;
+    return ic_score(&g_ws, &g_out);
 }
 
 /* As md_cycle.c decide() with default parameters and a 0..5000 µm window. */
@@ -241,17 +147,18 @@ static md_status_t stage_control(void)
     sc_config_default(&scc);
     sfsm_input_t in;
     memset(&in, 0, sizeof in);
-    in.has_dominant = g_has_dominant;
-    in.dominant_track = g_dominant;
-    in.snr = g_snr;
-    in.iqm = g_iqm;
-    in.spikes_seen = g_n_spikes > 0u;
+    in.has_dominant = g_out.has_dominant;
+    in.dominant_track = g_out.dominant;
+    in.snr = g_out.snr;
+    in.iqm = g_out.iqm;
+    in.spikes_seen = g_out.n_spikes > 0u;
     in.depth_um = g_depth_um;
     in.depth_min_um = 0.0;
     in.depth_max_um = 5000.0;
-    if (g_has_dominant) {
+    if (g_out.has_dominant) {
         sc_curve_t *curve = NULL;
-        if (sc_table_observe(&g_curves, &scc, g_dominant, g_depth_um, g_snr, &curve) == MD_OK && curve != NULL) {
+        if (sc_table_observe(&g_curves, &scc, g_out.dominant, g_depth_um, g_out.snr, &curve) == MD_OK &&
+            curve != NULL) {
             (void)sc_curve_suggest(curve, &scc, g_depth_um, g_sfsm.search_dir, &in.suggestion);
         }
     }
@@ -330,12 +237,12 @@ md_status_t bench_setup(void)
     if (st != MD_OK) {
         return st;
     }
-    g_info.detected = (uint32_t)g_win.n;
-    g_info.noise = (uint32_t)g_noise.n;
-    g_info.d_w = (uint32_t)g_win.d_w;
-    g_info.hyp = (uint32_t)g_mh_res.n_hyp;
-    g_info.tracks = (uint32_t)g_mh_res.n_tracks;
-    g_info.models = (uint32_t)g_mh_res.models_fitted;
+    g_info.detected = (uint32_t)g_ws.win.n;
+    g_info.noise = (uint32_t)g_ws.noise.n;
+    g_info.d_w = (uint32_t)g_ws.win.d_w;
+    g_info.hyp = (uint32_t)g_ws.res.n_hyp;
+    g_info.tracks = (uint32_t)g_ws.res.n_tracks;
+    g_info.models = (uint32_t)g_ws.res.models_fitted;
     g_info.reused = g_mh.stats.models_reused - g_mh_saved.stats.models_reused;
     g_info.shared = g_mh.stats.models_shared - g_mh_saved.stats.models_shared;
     g_info.warm = g_mh.stats.models_warm - g_mh_saved.stats.models_warm;
@@ -356,7 +263,8 @@ md_status_t bench_run_stage(bench_stage_t s)
         g_curves = g_curves_saved;
         g_sfsm = g_sfsm_saved;
     } else {
-        /* detect, pca, cluster and quality are functions of the interval */
+        /* detect, pca, cluster and quality are functions of the interval (and of
+         * the stages before them, which the drivers run in cycle order) */
     }
     return run_raw(s);
 }
@@ -371,15 +279,13 @@ void bench_info(bench_info_t *info)
 const double *bench_features(size_t *n)
 {
     if (n != NULL) {
-        *n = g_n_spikes;
+        *n = g_ws.n_spikes;
     }
-    return g_y;
+    return g_ws.y;
 }
 
 size_t bench_static_bytes(void)
 {
-    return sizeof g_trace + sizeof g_scratch + sizeof g_peaks + sizeof g_sp + sizeof g_win + sizeof g_noise +
-           sizeof g_pca + sizeof g_basis + sizeof g_y + sizeof g_noise_y + sizeof g_qm_work + sizeof g_wave +
-           sizeof g_cl_ws + sizeof g_cl_res + 2u * sizeof g_mh + sizeof g_mh_ws + sizeof g_mh_res +
-           2u * sizeof g_curves + 2u * sizeof g_sfsm;
+    return sizeof g_trace + sizeof g_scratch + sizeof g_peaks + sizeof g_ws + sizeof g_out + sizeof g_cl_ws +
+           sizeof g_cl_res + 2u * sizeof g_mh + 2u * sizeof g_curves + 2u * sizeof g_sfsm;
 }

@@ -1,5 +1,6 @@
 /// @file bench_core.h
-/// One electrode cycle split into separately runnable stages, for the host
+/// One electrode cycle split into separately runnable stages (the stages of
+/// pipeline/interval_chain.h, the controller's unit, plus control), for the host
 /// benchmark (tools/bench/md_bench.c: wall time, callgrind instruction counts)
 /// and the Cortex-M7 benchmark (tests/target/bench_m7.c: QEMU -icount).
 ///
@@ -32,11 +33,11 @@
 /// Laplace, no prior targets): it is part of MHTC's step, so the cycle total
 /// leaves it out.
 typedef enum {
-    BENCH_ST_DETECT = 0,  ///< sp_init + sp_push (30-sample chunks) + sp_finish
-    BENCH_ST_PCA,         ///< pca_fit_i16 + projections of spikes and noise, Ξ, noise RMS
+    BENCH_ST_DETECT = 0,  ///< ic_begin + ic_push (30-sample chunks) + ic_end (streaming detection, extraction)
+    BENCH_ST_PCA,         ///< ic_features: pca_fit_i16, projections of spikes and noise, Ξ, noise RMS, robust amplitude
     BENCH_ST_CLUSTER,     ///< cluster_fit_models, G = 1..4, Laplace (not in the cycle sum)
-    BENCH_ST_MHTC,        ///< one mhtc_step, L = 8, G_max = 4, Laplace
-    BENCH_ST_QUALITY,     ///< SNR of every track + isolation distance of the dominant one
+    BENCH_ST_MHTC,        ///< ic_track: one mhtc_step on the int16 windows, L = 8, G_max = 4, Laplace
+    BENCH_ST_QUALITY,     ///< ic_score: SNR of every track + isolation distance of the dominant one
     BENCH_ST_CONTROL,     ///< sc_table_observe + sc_curve_suggest + sfsm_step
     BENCH_ST_COUNT
 } bench_stage_t;
@@ -52,7 +53,9 @@ int bench_stage_in_cycle(bench_stage_t s);
 md_status_t bench_setup(void);
 
 /// Runs stage s on the measured interval from the saved state. MD_OK or the
-/// stage's status (MD_E_ARG for s out of range or before bench_setup()).
+/// stage's status (MD_E_ARG for s out of range or before bench_setup();
+/// MD_E_STATE for pca, mhtc or quality when a detect ran after the stage
+/// they need: the drivers run the stages in cycle order).
 md_status_t bench_run_stage(bench_stage_t s);
 
 /// Facts of the measured interval (valid after bench_setup()).
