@@ -1,7 +1,8 @@
 /// @file cluster_consistency.c
 /// Clustering-consistency experiment of thesis §3.5.2 on a simulator export:
-/// every interval of one channel goes through the firmware signal chain
-/// (wavelet detection, min-aligned windows, noise snippets, d = 2 PCA, Ξ) and
+/// every interval of one channel goes through the controller's signal chain
+/// (pipeline/interval_chain.h up to its features: streaming wavelet
+/// detection, min-aligned int16 windows, noise snippets, d = 2 PCA, Ξ) and
 /// is clustered twice with cluster_fit_models():
 ///  - MAP (§3.3): mean prior and seeds from the clusters chosen in interval
 ///    k-1, model prior = that interval's model posterior with forgetting
@@ -31,11 +32,11 @@
 #include "cc_io.h"
 #include "cluster/cluster.h"
 #include "common/linalg.h"
+#include "control/approach_guard.h"
 #include "features/pca.h"
 #include "metrics/quality.h"
+#include "pipeline/interval_chain.h"
 #include "recording.h"
-#include "signal/spike_detect.h"
-#include "signal/spike_extract.h"
 
 #define CC_D 2u                  ///< feature dimension (thesis §3.5: 2-D PCA)
 #define CC_MAX_NEURONS 64u       ///< truth neurons per channel
@@ -60,7 +61,7 @@ typedef struct {
 
 /// One processed interval (signal chain output plus truth labels).
 typedef struct {
-    sx_spikes_t spk;
+    sx_windows_t win;           ///< the interval's windows (int16 counts, gain: µV per count)
     double y[EM_N_MAX * CC_D];
     int32_t truth_of[EM_N_MAX]; ///< truth neuron of each detected spike, -1 if none
     uint32_t n_all[CC_MAX_NEURONS];
@@ -78,10 +79,9 @@ typedef struct {
     int have_post;
 } cc_map_state_t;
 
-static sd_detector_t det;
-static sd_events_t ev;
-static sx_noise_t noise;
-static pca_work_t pca_ws;
+static ic_workspace_t chain;    ///< the controller's interval chain
+static uint32_t chain_fs_hz;     ///< its sample rate: the recording's, in whole Hz
+static uint8_t chain_top_k;      ///< robust amplitude's k (the approach guard's default; not used here)
 static pca_basis_t basis;
 static cc_interval_data_t ivd[2];
 static cluster_workspace_t cws;
@@ -104,9 +104,9 @@ static void label_truth(const cc_truth_t *truth, uint64_t start, double fs, cc_i
         }
     }
     size_t last = SIZE_MAX;
-    for (size_t i = 0u; i < d->spk.n; ++i) {
+    for (size_t i = 0u; i < d->win.n; ++i) {
         d->truth_of[i] = -1;
-        const uint64_t t = start + d->spk.t[i];
+        const uint64_t t = start + d->win.t[i];
         size_t j = cc_truth_lower_bound(truth, (t > tol) ? t - tol : 0u);
         size_t best = SIZE_MAX;
         uint64_t best_dist = tol + 1u;
@@ -149,7 +149,7 @@ static double accuracy(const cc_interval_data_t *d, const uint8_t *labels, size_
     static uint32_t conf[EM_G_MAX + 1u][CC_MAX_NEURONS];
     memset(conf, 0, sizeof conf);
     uint32_t n_true = 0u;
-    for (size_t i = 0u; i < d->spk.n; ++i) {
+    for (size_t i = 0u; i < d->win.n; ++i) {
         if (d->truth_of[i] >= 0) {
             n_true++;
             if (labels[i] <= g) {
@@ -170,36 +170,30 @@ static double accuracy(const cc_interval_data_t *d, const uint8_t *labels, size_
 
 /* --------------------------------------------------------- signal chain */
 
-static md_status_t run_chain(const int16_t *x, size_t n, double fs, double gain, cc_interval_data_t *d)
+/* The controller's chain up to its features (ic_begin .. ic_features); the
+ * windows, features, basis and Ξ are kept (the next interval's prior projects
+ * these windows into its basis). */
+static md_status_t run_chain(const int16_t *x, size_t n, double gain, cc_interval_data_t *d)
 {
     d->valid = 0;
-    d->spk.n = 0u;
-    md_status_t st = sd_restart(&det);
-    if (st == MD_OK) {
-        (void)sd_push(&det, x, n);
-        st = sd_finish(&det, &ev);
-    }
-    sx_config_t sx;
-    sx_config_default(&sx, (uint32_t)fs);
-    sx.gain = gain;
-    if (st == MD_OK) {
-        st = sx_extract_spikes(x, n, &ev, &sx, &d->spk);
-    }
-    if (st == MD_OK) {
-        st = sx_extract_noise(x, n, &ev, &sx, &noise);
-    }
-    if ((st != MD_OK) || (d->spk.n < 2u)) {
+    d->win.n = 0u;
+    const ic_config_t cfg = {chain_fs_hz, gain, (uint32_t)n, chain_top_k};
+    md_status_t st = ic_begin(&chain, &cfg);
+    st = (st == MD_OK) ? ic_push(&chain, x, n) : st;
+    st = (st == MD_OK) ? ic_end(&chain) : st;
+    if (st != MD_OK) {
         return st;
     }
-    st = pca_fit(&d->spk.wave[0][0], d->spk.n, MD_WAVE_LEN_MAX, d->spk.d_w, CC_D, &pca_ws, &basis);
-    if (st == MD_OK) {
-        st = pca_project_all(&basis, &d->spk.wave[0][0], d->spk.n, MD_WAVE_LEN_MAX, d->y);
+    d->win = chain.win;
+    st = ic_features(&chain);
+    if ((st != MD_OK) || (chain.n_spikes < 2u)) {
+        return st;
     }
-    if (st == MD_OK) {
-        st = qm_noise_feature_cov(&basis, &noise.wave[0][0], noise.n, MD_WAVE_LEN_MAX, xi);
-    }
-    d->valid = (st == MD_OK);
-    return st;
+    memcpy(d->y, chain.y, (size_t)chain.n_spikes * CC_D * sizeof d->y[0]);
+    basis = chain.basis;
+    memcpy(xi, chain.xi, sizeof xi);
+    d->valid = 1;
+    return MD_OK;
 }
 
 /* ------------------------------------------------------------ MAP prior */
@@ -218,8 +212,9 @@ static int make_target(const cc_interval_data_t *prev, const uint8_t *labels, ui
 {
     static double py[EM_N_MAX * CC_D];
     size_t m = 0u;
-    for (size_t i = 0u; i < prev->spk.n; ++i) {
-        if ((labels[i] == label) && (pca_project(&basis, prev->spk.wave[i], &py[m * CC_D]) == MD_OK)) {
+    for (size_t i = 0u; i < prev->win.n; ++i) {
+        if ((labels[i] == label) &&
+            (pca_project_i16(&basis, prev->win.wave[i], prev->win.gain, &py[m * CC_D]) == MD_OK)) {
             m++;
         }
     }
@@ -271,7 +266,7 @@ static void print_clusters(uint32_t k, const char *method, const cluster_result_
     }
     const cluster_model_t *m = &r->model[r->best_g - 1u];
     memset(cnt, 0, sizeof cnt);
-    for (size_t i = 0u; i < d->spk.n; ++i) {
+    for (size_t i = 0u; i < d->win.n; ++i) {
         const uint32_t u = (d->truth_of[i] >= 0) ? (uint32_t)d->truth_of[i] : CC_MAX_NEURONS;
         cnt[m->labels[i]][u]++;
     }
@@ -323,7 +318,7 @@ static void cluster_interval(const cc_options_t *o, const cc_interval_data_t *cu
         return;
     }
     *n_targets = ms->have ? make_targets(prev, ms, o->q_uv, tg) : 0u;
-    cluster_input_t in = {{cur->y, cur->spk.n, CC_D}, xi, tg, *n_targets, have_prior ? prior : NULL};
+    cluster_input_t in = {{cur->y, cur->win.n, CC_D}, xi, tg, *n_targets, have_prior ? prior : NULL};
     cluster_config_default(&cfg, CLUSTER_MAP);
     cfg.evidence = o->map_bic ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
     (void)cluster_fit_models(&cfg, &in, &cws, &res_map);
@@ -331,7 +326,7 @@ static void cluster_interval(const cc_options_t *o, const cc_interval_data_t *cu
     if (res_map.best_g > 0u) {
         ms->have = 1;
         ms->g = res_map.best_g;
-        memcpy(ms->labels, res_map.model[res_map.best_g - 1u].labels, cur->spk.n);
+        memcpy(ms->labels, res_map.model[res_map.best_g - 1u].labels, cur->win.n);
         for (size_t g = 0u; g < EM_G_MAX; ++g) {
             ms->post[g] = res_map.model[g].post_prob;
         }
@@ -342,7 +337,7 @@ static void cluster_interval(const cc_options_t *o, const cc_interval_data_t *cu
             memcpy(ms->post, prior, sizeof prior);
         }
     }
-    const cluster_input_t in_ml = {{cur->y, cur->spk.n, CC_D}, xi, NULL, 0u, NULL};
+    const cluster_input_t in_ml = {{cur->y, cur->win.n, CC_D}, xi, NULL, 0u, NULL};
     cluster_config_default(&cfg, CLUSTER_ML);
     (void)cluster_fit_models(&cfg, &in_ml, &cws, &res_ml);
     *ml = choose(&res_ml, cur);
@@ -354,15 +349,15 @@ static int mean_wave(const cc_interval_data_t *d, int32_t nid, double *mean)
 {
     size_t m = 0u;
     memset(mean, 0, MD_WAVE_LEN_MAX * sizeof *mean);
-    for (size_t i = 0u; i < d->spk.n; ++i) {
+    for (size_t i = 0u; i < d->win.n; ++i) {
         if (d->truth_of[i] == nid) {
-            for (size_t s = 0u; s < d->spk.d_w; ++s) {
-                mean[s] += d->spk.wave[i][s];
+            for (size_t s = 0u; s < d->win.d_w; ++s) {
+                mean[s] += d->win.gain * (double)d->win.wave[i][s];
             }
             m++;
         }
     }
-    for (size_t s = 0u; (m > 0u) && (s < d->spk.d_w); ++s) {
+    for (size_t s = 0u; (m > 0u) && (s < d->win.d_w); ++s) {
         mean[s] /= (double)m;
     }
     return (m >= CC_TRUE_MIN_SPIKES) ? 0 : -1;
@@ -436,12 +431,12 @@ static void print_row(const rec_recording_t *rec, const cc_options_t *o, uint32_
     char ids[256];
     const uint32_t n_true = true_count(d, ids, sizeof ids);
     size_t n_false = 0u;
-    for (size_t i = 0u; i < d->spk.n; ++i) {
+    for (size_t i = 0u; i < d->win.n; ++i) {
         n_false += (d->truth_of[i] < 0) ? 1u : 0u;
     }
     printf("%s,%llu,%u,%u,%.2f,%zu,%zu,%zu,%u,%s,%zu,%zu,%.4f,%.4f,%zu,%.4f,%.4f,%u\n", rec->scenario,
-           (unsigned long long)rec->seed, o->channel, k, rec->iv[k].depth_um, d->spk.n, n_false, noise.n,
-           n_true, ids, n_targets, map->g, map->p, map->acc, ml->g, ml->p, ml->acc, ev.n_overflow);
+           (unsigned long long)rec->seed, o->channel, k, rec->iv[k].depth_um, d->win.n, n_false, chain.noise.n,
+           n_true, ids, n_targets, map->g, map->p, map->acc, ml->g, ml->p, ml->acc, d->win.n_overflow);
 }
 
 static int run(const cc_options_t *o, const rec_recording_t *rec, const cc_truth_t *truth, int16_t *x, size_t cap)
@@ -469,7 +464,7 @@ static int run(const cc_options_t *o, const rec_recording_t *rec, const cc_truth
                           (unsigned long long)(conv.non_finite - before.non_finite));
         }
         cur->duration_s = (double)rec->iv[k].num_samples / rec->fs_hz;
-        (void)run_chain(x, (size_t)rec->iv[k].num_samples, rec->fs_hz, rec->count_uv, cur);
+        (void)run_chain(x, (size_t)rec->iv[k].num_samples, rec->count_uv, cur);
         label_truth(truth, rec->iv[k].start_sample, rec->fs_hz, cur);
         if (o->drift) {
             if ((k > 0u) && cur->valid && prev->valid) {
@@ -528,15 +523,17 @@ int main(int argc, char **argv)
     for (uint32_t k = 0u; k < rec.n_intervals; ++k) {
         cap = (rec.iv[k].num_samples > cap) ? (size_t)rec.iv[k].num_samples : cap;
     }
+    ag_config_t ag;
+    ag_config_default(&ag);
+    chain_top_k = ag.top_k;
+    chain_fs_hz = (uint32_t)llround(rec.fs_hz);
+    const ic_config_t probe = {chain_fs_hz, rec.count_uv, (uint32_t)((cap > 0u) ? cap : 1u), chain_top_k};
     int16_t *x = malloc(cap * sizeof *x);
-    int16_t *det_buf = malloc(cap * sizeof *det_buf); /* the detector's interval buffer */
-    sd_config_t sdc;
-    sd_config_default(&sdc, SD_METHOD_WAVELET, (uint32_t)rec.fs_hz);
-    if ((x == NULL) || (det_buf == NULL) || (cap > SD_MAX_INTERVAL_SAMPLES) ||
-        (sd_init(&det, &sdc, det_buf, cap) != MD_OK)) {
-        (void)fprintf(stderr, "cluster-consistency: cannot set up the detector\n");
+    if ((x == NULL) || (cap == 0u) || (cap > SD_MAX_INTERVAL_SAMPLES) || (ic_begin(&chain, &probe) != MD_OK)) {
+        (void)fprintf(stderr, "cluster-consistency: %s: the firmware's streaming chain cannot take %u Hz (7500..32768) "
+                              "or intervals of %zu samples (at most %u)\n", path, chain_fs_hz, cap,
+                      (unsigned)SD_MAX_INTERVAL_SAMPLES);
         free(x);
-        free(det_buf);
         cc_truth_free(&truth);
         return 1;
     }
@@ -547,7 +544,6 @@ int main(int argc, char **argv)
     }
     const int rc = run(&o, &rec, &truth, x, cap);
     free(x);
-    free(det_buf);
     cc_truth_free(&truth);
     return rc;
 }
