@@ -68,11 +68,11 @@ def main() -> int:
 
     order = ["detect", "pca", "cluster", "mhtc", "quality", "control"]
     what = {
-        "detect": "detection + extraction (sp_push in 30-sample chunks, sp_finish)",
-        "pca": "pca_fit_i16, projections of spikes and noise, Ξ, noise RMS",
+        "detect": "detection + extraction (ic_begin, ic_push in 30-sample chunks, ic_end)",
+        "pca": "ic_features: pca_fit_i16, projections of spikes and noise, Ξ, noise RMS, robust amplitude",
         "cluster": "clustering alone, G = 1..4, Laplace (inside MHTC; not added to the cycle)",
-        "mhtc": "one mhtc_step, L = 8, G_max = 4, Laplace",
-        "quality": "SNR of every track, isolation distance of the dominant one",
+        "mhtc": "ic_track: one mhtc_step on the int16 windows, L = 8, G_max = 4, Laplace",
+        "quality": "ic_score: SNR of every track, isolation distance of the dominant one",
         "control": "sc_table_observe + sc_curve_suggest + sfsm_step",
     }
     L = []

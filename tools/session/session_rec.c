@@ -220,8 +220,8 @@ static void rec_trim(session_rec_electrode_t *el)
 
 /* Writes electrode e's sidecar; *written: the intervals it lists. 0 ok, -1 (errno set).
  * gain_uV with 17 significant digits: the FE_INFO float32 as the double the controller
- * computes with, so a replay (mhtc-replay) scales by the same gain; %.7g (0.195 for
- * 0.19499999284744263) changed a replay's labels in 2 of 161 intervals of single_neuron seed 1. */
+ * computes with, so a replay (mhtc-replay) scales by the same gain and gives the same
+ * labels (7 digits, 0.195 for 0.19499999284744263, does not: docs/mhtc.md). */
 static int rec_write_sidecar(const session_rec_t *r, uint32_t e, const char *json, const char *bin_name,
                              uint32_t *written)
 {
