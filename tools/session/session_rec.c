@@ -200,6 +200,18 @@ static void json_number_or_null(FILE *out, const char *key, double v, int decima
     }
 }
 
+/* A number written so that it reads back as the same double (17 significant
+ * digits), or null. */
+static void json_number_or_null_exact(FILE *out, const char *key, double v)
+{
+    (void)fprintf(out, ", \"%s\": ", key);
+    if (isfinite(v)) {
+        (void)fprintf(out, "%.17g", v);
+    } else {
+        (void)fprintf(out, "null");
+    }
+}
+
 /* Drops the intervals that never ended or hold no sample (a session that
  * stopped mid-recording, a request that got nothing); the binary is cut at
  * the end of the last one kept, so every sample in it belongs to an interval. */
@@ -251,7 +263,7 @@ static int rec_write_sidecar(const session_rec_t *r, uint32_t e, const char *jso
         json_number_or_null(out, "start_s", iv->start_s, 6);
         (void)fprintf(out, ", \"interval_id\": %u", (unsigned)iv->interval_id);
         json_number_or_null(out, "cycle", iv->cycle >= 0 ? (double)iv->cycle : nan(""), 0);
-        json_number_or_null(out, "depth_um", iv->depth_um, 3);
+        json_number_or_null_exact(out, "depth_um", iv->depth_um);
         json_number_or_null(out, "hall_code", iv->hall_code >= 0 ? (double)iv->hall_code : nan(""), 0);
         (void)fprintf(out, ", \"complete\": %s}", iv->complete ? "true" : "false");
         k++;
