@@ -463,6 +463,18 @@ static double guard(md_electrode_t *el, const md_node_t *node, const md_workspac
     return out.step_um;
 }
 
+/* The electrode's depth as TLM_STATUS reports it (float32). The tracker's
+ * travel is measured on it, so a session's recording holds the tracker's input
+ * to the bit and mhtc-replay reproduces the labels (docs/mhtc.md "Offline
+ * replay"); the rounding is < 3e-8 of the depth. False: no calibrated depth. */
+static bool reported_depth_um(const md_electrode_t *el, double *depth_um)
+{
+    double d = 0.0;
+    const bool ok = (md_servo_depth_um(&el->servo, &d) == MD_OK);
+    *depth_um = (double)(float)d;
+    return ok;
+}
+
 static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
 {
     const uint64_t w0 = work_begin(node);
@@ -475,7 +487,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     const double duration_s = (double)el->rec_samples / (double)el->sample_rate_hz;
     md_status_t st = (el->rec_status != MD_OK) ? el->rec_status : MD_OK;
     double here = 0.0;
-    const bool here_ok = (md_servo_depth_um(&el->servo, &here) == MD_OK);
+    const bool here_ok = reported_depth_um(el, &here);
     el->move_um = (here_ok && el->tracked_depth_ok) ? fabs(here - el->tracked_depth_um) : 0.0;
     if (st == MD_OK) {
         st = md_process_interval(&c->ws, el, duration_s, md_params_get(&node->params, MD_P_MIN_RATE_HZ), &po);
