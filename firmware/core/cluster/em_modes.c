@@ -96,9 +96,10 @@ md_status_t em_gauss_ridge_ratio(size_t d, double w_a, const double *m_a, const 
         return MD_E_NUMERIC;
     }
     double logf[EM_RIDGE_POINTS];
+    const double last = (double)EM_RIDGE_POINTS - 1.0;
     for (size_t k = 0u; k < EM_RIDGE_POINTS; ++k) {
         double x[EM_D_MAX];
-        const double alpha = (double)k / (double)(EM_RIDGE_POINTS - 1u);
+        const double alpha = (double)k / last;
         if (ridge_point(&ca, m_a, &cb, m_b, d, alpha, x) != MD_OK) {
             return MD_E_NUMERIC;
         }

@@ -101,8 +101,10 @@ static uint32_t sx_resample(const sd_view_t *v, uint32_t start, double delta, co
         if (rowd != NULL) {
             rowd[j] = c->gain * (r + 0.0); /* + 0.0: no negative zero, as the int16 path */
         } else {
-            clipped += ((r < (double)INT16_MIN) || (r > (double)INT16_MAX)) ? 1u : 0u;
-            row16[j] = (int16_t)((r < (double)INT16_MIN) ? INT16_MIN : ((r > (double)INT16_MAX) ? INT16_MAX : r));
+            const bool out = (r < (double)INT16_MIN) || (r > (double)INT16_MAX);
+            clipped += out ? 1u : 0u;
+            const double sat = (r < (double)INT16_MIN) ? (double)INT16_MIN : ((r > (double)INT16_MAX) ? (double)INT16_MAX : r);
+            row16[j] = (int16_t)sat;
         }
     }
     return clipped;
@@ -235,8 +237,8 @@ md_status_t sx_stream_init(sx_stream_t *sx, const sx_config_t *cfg, const sd_str
     }
     /* a window (with realignment) or a candidate's guard zone must still be in
      * the delay line when the detector lets it go */
-    const uint64_t need = (uint64_t)sd_stream_latency(det) + cfg->pre_peak + cfg->d_w + 2u * cfg->realign +
-                          2u * SX_INTERP_MARGIN + cfg->guard + SX_SERVICE_MAX + SD_STEP_SAMPLES;
+    const uint64_t need = (uint64_t)sd_stream_latency(det) + cfg->pre_peak + cfg->d_w + (2u * (uint64_t)cfg->realign) +
+                          (2u * (uint64_t)SX_INTERP_MARGIN) + cfg->guard + SX_SERVICE_MAX + SD_STEP_SAMPLES;
     if (need > SD_RING_SAMPLES) {
         return MD_E_ARG;
     }

@@ -449,10 +449,12 @@ static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double v
     for (size_t g = 1u; g <= st->cfg.g_max; ++g) {
         double lp3 = 0.0;
         if (st->n_hyp == 0u) {
-            lp3 = -log((double)st->cfg.g_max); /* first interval: see mhtc_root_p3 below */
+            lp3 = -log((double)st->cfg.g_max); /* first interval: every class alike (above) */
         } else if ((mhtc_log_p3(pd, nt, g, l0, &lp3) != MD_OK) || !(exp(lp3) > st->cfg.beta)) {
             st->stats.models_pruned++; /* eq. 4.11 */
             continue;
+        } else {
+            /* a later interval whose class passed eq. 4.11 */
         }
         mhtc_model_t *m = &ws->model[ws->n_models];
         memset(m, 0, sizeof *m);

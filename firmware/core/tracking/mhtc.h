@@ -265,6 +265,11 @@ typedef struct {
     mhtc_hyp_t next[MHTC_L_MAX];
     kf_work_t kf;
     double wsum[KF_DW_MAX];
+    int key_src[MHTC_TARGETS_MAX + MHTC_G_MAX];   ///< record keys of the candidate being staged (step 9)
+    int key_model[MHTC_TARGETS_MAX + MHTC_G_MAX];
+    uint8_t key_g[MHTC_TARGETS_MAX + MHTC_G_MAX];
+    double pair_mean[2][EM_D_MAX];           ///< two records seen through B^k (one-mode test of a track pair):
+    double pair_cov[2][EM_D_MAX * EM_D_MAX]; ///< here, not on the stack of step 9's deepest path
 } mhtc_workspace_t;
 
 /// Per-track report of the leading hypothesis.

@@ -279,16 +279,17 @@ static void mhtc_record_view(const mhtc_track_t *t, const pca_basis_t *b, double
 }
 
 /* Whether missed record `a` and detected record `b` form one mode in B^k (cfg.unimodal_ratio). */
-static bool mhtc_same_mode(const mhtc_state_t *st, const pca_basis_t *b, const mhtc_track_t *a,
-                           const mhtc_track_t *det)
+static bool mhtc_same_mode(const mhtc_state_t *st, const pca_basis_t *b, mhtc_workspace_t *ws,
+                           const mhtc_track_t *a, const mhtc_track_t *det)
 {
-    double ma[EM_D_MAX], mb[EM_D_MAX], ca[EM_D_MAX * EM_D_MAX], cb[EM_D_MAX * EM_D_MAX];
-    mhtc_record_view(a, b, ma, ca);
-    mhtc_record_view(det, b, mb, cb);
+    mhtc_record_view(a, b, ws->pair_mean[0], ws->pair_cov[0]);
+    mhtc_record_view(det, b, ws->pair_mean[1], ws->pair_cov[1]);
     const double wa = (a->n_last > 1.0) ? a->n_last : 1.0;
     const double wb = (det->n_last > 1.0) ? det->n_last : 1.0;
     double r = 0.0;
-    return (em_gauss_ridge_ratio(b->d, wa, ma, ca, wb, mb, cb, &r) == MD_OK) && (r >= st->cfg.unimodal_ratio);
+    return (em_gauss_ridge_ratio(b->d, wa, ws->pair_mean[0], ws->pair_cov[0], wb, ws->pair_mean[1], ws->pair_cov[1],
+                                 &r) == MD_OK) &&
+           (r >= st->cfg.unimodal_ratio);
 }
 
 /* Whether the detected cluster's count says it holds one neuron, not the missed track's neuron
@@ -341,13 +342,13 @@ static void mhtc_drop_second_tracks(mhtc_state_t *st, const mhtc_input_t *in, mh
     if (!(st->cfg.unimodal_ratio > 0.0)) {
         return;
     }
-    bool drop[MHTC_TARGETS_MAX] = {false};
+    uint32_t drop = 0u; /* bit j: entry j leaves h */
     for (size_t j = 0u; j < h->n_tracks; ++j) { /* merges rewrite entries in place; drops are compacted after */
         const size_t t = h->track[j];
         size_t twin = MHTC_POOL;
         for (size_t q = 0u; (q < h->n_tracks) && (twin == MHTC_POOL) && (ws->staged[t].cluster == 0u); ++q) {
             const mhtc_track_t *o = &ws->staged[h->track[q]];
-            twin = ((o->cluster > 0u) && mhtc_same_mode(st, in->basis, &ws->staged[t], o) &&
+            twin = ((o->cluster > 0u) && mhtc_same_mode(st, in->basis, ws, &ws->staged[t], o) &&
                     mhtc_one_neuron_count(st, ws, t, h->track[q]))
                        ? q
                        : MHTC_POOL;
@@ -360,11 +361,11 @@ static void mhtc_drop_second_tracks(mhtc_state_t *st, const mhtc_input_t *in, mh
         }
         ws->staged[t].refs--;
         st->stats.tracks_merged++;
-        drop[j] = true;
+        drop |= 1u << j;
     }
     size_t kept = 0u;
     for (size_t j = 0u; j < h->n_tracks; ++j) {
-        if (!drop[j]) {
+        if ((drop & (1u << j)) == 0u) {
             h->track[kept++] = h->track[j];
         }
     }
@@ -416,8 +417,9 @@ static size_t mhtc_stage(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspac
     size_t n_next = 0u;
     ws->n_staged = 0u;
     for (size_t ci = 0u; ci < ws->n_cand; ++ci) {
-        int src[MHTC_TARGETS_MAX + MHTC_G_MAX], model[MHTC_TARGETS_MAX + MHTC_G_MAX];
-        uint8_t g[MHTC_TARGETS_MAX + MHTC_G_MAX];
+        int *src = ws->key_src; /* the candidate's record keys: in the workspace, off the deepest stack path */
+        int *model = ws->key_model;
+        uint8_t *g = ws->key_g;
         const size_t nk = mhtc_cand_keys(st, ws, &ws->cand[ci], src, model, g);
         size_t need = 0u;
         for (size_t k = 0u; k < nk; ++k) {
