@@ -58,7 +58,14 @@ for old, new in (('fs = em_fit_from(data,', 'fs = em_fit_from_by_g(data,'),
     s = s.replace(old, new)
 open(p, 'w').write(s)
 PY
-(cd "$work/src" && cmake -S . -B "$work/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+# the copy lives in the build tree, away from the vendored Unity beside this checkout
+# (cmake/md_unity.cmake): hand the configure step the checkout's copy when there is one
+unity=()
+vendor="$PWD/../shared/vendor/Unity-2.6.1" # the working directory is the checkout (above)
+if [ -f "$vendor/src/unity.c" ]; then
+    unity=(-DFETCHCONTENT_SOURCE_DIR_UNITY="$(cd "$vendor" && pwd)")
+fi
+(cd "$work/src" && cmake -S . -B "$work/build" -G Ninja -DCMAKE_BUILD_TYPE=Release "${unity[@]}" \
     -DCMAKE_C_FLAGS_RELEASE="-O2 -DNDEBUG -Wno-error -fno-ipa-icf" >/dev/null &&
     cmake --build "$work/build" -j2 --target md-bench >/dev/null)
 valgrind --tool=callgrind --collect-atstart=no --compress-strings=no --callgrind-out-file="$work/cg" \
