@@ -271,9 +271,14 @@ static bool mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, m
     cluster_workspace_t *c = &ws->cl;
     m->usable = false;
     const size_t warm = (m->g > nt) ? mhtc_warm_donor(st, ws, data->d, m->g, m->parent) : MHTC_NO_SLOT;
+    const size_t gi = (size_t)m->g - 1u;
+    const bool warm_dropped = (warm == MHTC_NO_SLOT) && (m->g > nt) && ws->one_mode_ok[gi] &&
+                              mhtc_priors_within(st, ws, data->d, ws->one_mode_parent[gi], m->parent,
+                                                 st->cfg.warm_jeffreys, 1.0);
     md_status_t fs = MD_E_ARG;
-    if (warm != MHTC_NO_SLOT) {
-        fs = em_fit_from(data, &c->outlier, &c->prior, &ws->model[warm].fit.params, &st->cfg.em, c->z, &m->fit);
+    if ((warm != MHTC_NO_SLOT) || warm_dropped) {
+        const em_params_t *from = warm_dropped ? &ws->one_mode[gi] : &ws->model[warm].fit.params;
+        fs = em_fit_from(data, &c->outlier, &c->prior, from, &st->cfg.em, c->z, &m->fit);
         st->stats.models_warm++;
     }
     if ((fs != MD_OK) && (fs != MD_E_NOCONVERGE)) {
@@ -286,6 +291,9 @@ static bool mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, m
         return false;
     }
     if (mhtc_oversplit(st, &m->fit.params)) {
+        ws->one_mode[gi] = m->fit.params;
+        ws->one_mode_parent[gi] = m->parent;
+        ws->one_mode_ok[gi] = true;
         return true;
     }
     em_labels(c->z, data->n, m->g, m->labels);
@@ -624,6 +632,7 @@ static md_status_t mhtc_run_mhtc(mhtc_state_t *st, const mhtc_input_t *in, mhtc_
     const size_t parents = (st->n_hyp == 0u) ? 1u : st->n_hyp;
     double volume = 0.0;
     ws->n_models = 0u;
+    memset(ws->one_mode_ok, 0, sizeof ws->one_mode_ok);
     const bool data_ok = (in->n > 0u) && (em_bounding_volume(&data, &volume) == MD_OK) &&
                          (em_outlier_init(data.d, in->noise_cov, volume, &ws->cl.outlier) == MD_OK) &&
                          (em_outlier_tabulate(&ws->cl.outlier, &data) == MD_OK);

@@ -265,6 +265,10 @@ typedef struct {
     mhtc_hyp_t next[MHTC_L_MAX];
     kf_work_t kf;
     double wsum[KF_DW_MAX];
+    em_params_t one_mode[MHTC_G_MAX];        ///< per class G: the interval's latest fit dropped as one mode,
+    uint8_t one_mode_parent[MHTC_G_MAX];     ///< its parent, and
+    bool one_mode_ok[MHTC_G_MAX];            ///< whether there is one: a warm start for the same class of a
+                                             ///< later parent (dropped fits are no models, so no donors)
     int key_src[MHTC_TARGETS_MAX + MHTC_G_MAX];   ///< record keys of the candidate being staged (step 9)
     int key_model[MHTC_TARGETS_MAX + MHTC_G_MAX];
     uint8_t key_g[MHTC_TARGETS_MAX + MHTC_G_MAX];
