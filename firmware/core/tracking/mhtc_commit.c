@@ -361,11 +361,11 @@ static void mhtc_drop_second_tracks(mhtc_state_t *st, const mhtc_input_t *in, mh
         }
         ws->staged[t].refs--;
         st->stats.tracks_merged++;
-        drop |= 1u << j;
+        drop |= (uint32_t)1u << (uint32_t)j;
     }
     size_t kept = 0u;
     for (size_t j = 0u; j < h->n_tracks; ++j) {
-        if ((drop & (1u << j)) == 0u) {
+        if ((drop & ((uint32_t)1u << (uint32_t)j)) == 0u) {
             h->track[kept++] = h->track[j];
         }
     }
