@@ -124,7 +124,7 @@ for t in "${targets[@]}"; do
     "$bin" "${limit[@]}" "${par[@]}" -max_len="$max_len" -timeout="$timeout" -rss_limit_mb=2048 \
         -print_final_stats=1 -artifact_prefix="$artifacts/" "${dirs[@]}" >"$log" 2>&1 || rc=$?
     wall=$(( $(date +%s) - start ))
-    execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | awk '{s+=$2} END {print s+0}')
+    execs=$( (grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" || true) | awk '{s+=$2} END {print s+0}')
     if [[ "$execs" -eq 0 ]]; then  # fork mode prints no final stats: take the last progress line
         execs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#' || true)
     fi
