@@ -20,6 +20,19 @@
 #define IC_TRACKED 4
 #define IC_SCORED 5
 
+/* A stage's outcome: on failure counted in *errors and the chain back to idle
+ * (the next interval starts with ic_begin); on success `next` is reached. */
+static md_status_t stage_done(ic_workspace_t *ws, md_status_t st, uint32_t *errors, int next)
+{
+    if (st != MD_OK) {
+        (*errors)++;
+        ws->stage = IC_IDLE;
+        return st;
+    }
+    ws->stage = next;
+    return MD_OK;
+}
+
 md_status_t ic_begin(ic_workspace_t *ws, const ic_config_t *cfg)
 {
     if (ws == NULL) {
@@ -83,13 +96,8 @@ md_status_t ic_end(ic_workspace_t *ws)
     if (ws->stage == IC_RECORDING) {
         st = sp_finish(&ws->u.sp);
     }
-    if (st != MD_OK && st != MD_E_DEGENERATE) {
-        ws->stats.end_errors++;
-        ws->stage = IC_IDLE;
-        return st;
-    }
-    ws->stage = IC_ENDED;
-    return MD_OK;
+    /* MD_E_DEGENERATE (a short or flat interval): the outputs are valid all the same */
+    return stage_done(ws, (st == MD_E_DEGENERATE) ? MD_OK : st, &ws->stats.end_errors, IC_ENDED);
 }
 
 /* Basis B^k from the windows (or, without spikes, from the noise so that H^k
@@ -132,13 +140,7 @@ md_status_t ic_features(ic_workspace_t *ws)
         return MD_E_ARG;
     }
     const md_status_t st = (ws->stage >= IC_ENDED) ? features(ws) : MD_E_STATE;
-    if (st != MD_OK) {
-        ws->stats.feature_errors++;
-        ws->stage = IC_IDLE;
-        return st;
-    }
-    ws->stage = IC_FEATURES;
-    return MD_OK;
+    return stage_done(ws, st, &ws->stats.feature_errors, IC_FEATURES);
 }
 
 md_status_t ic_track(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um)
@@ -155,13 +157,7 @@ md_status_t ic_track(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um)
                                  ws->win.gain, move_um};
         st = mhtc_step(tracker, &in, &ws->u.mhtc, &ws->res);
     }
-    if (st != MD_OK) {
-        ws->stats.track_errors++;
-        ws->stage = IC_IDLE;
-        return st;
-    }
-    ws->stage = IC_TRACKED;
-    return MD_OK;
+    return stage_done(ws, st, &ws->stats.track_errors, IC_TRACKED);
 }
 
 md_status_t ic_isolation(ic_workspace_t *ws, uint8_t cluster, qm_isolation_t *iso)
