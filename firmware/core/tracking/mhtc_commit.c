@@ -278,11 +278,11 @@ static void mhtc_record_view(const mhtc_track_t *t, const pca_basis_t *b, double
     mhtc_map_sigma(t, b->b, b->d, b->d_w, cov);
 }
 
-/* Whether missed record `a` and detected record `b` form one mode in B^k (cfg.unimodal_ratio). */
+/* Whether missed record `a`, already seen through B^k in ws->pair_*[0] (mhtc_record_view), and
+ * detected record `det` form one mode (cfg.unimodal_ratio). */
 static bool mhtc_same_mode(const mhtc_state_t *st, const pca_basis_t *b, mhtc_workspace_t *ws,
                            const mhtc_track_t *a, const mhtc_track_t *det)
 {
-    mhtc_record_view(a, b, ws->pair_mean[0], ws->pair_cov[0]);
     mhtc_record_view(det, b, ws->pair_mean[1], ws->pair_cov[1]);
     const double wa = (a->n_last > 1.0) ? a->n_last : 1.0;
     const double wb = (det->n_last > 1.0) ? det->n_last : 1.0;
@@ -346,6 +346,9 @@ static void mhtc_drop_second_tracks(mhtc_state_t *st, const mhtc_input_t *in, mh
     for (size_t j = 0u; j < h->n_tracks; ++j) { /* merges rewrite entries in place; drops are compacted after */
         const size_t t = h->track[j];
         size_t twin = MHTC_POOL;
+        if (ws->staged[t].cluster == 0u) { /* a missed record: seen through B^k once for every pair */
+            mhtc_record_view(&ws->staged[t], in->basis, ws->pair_mean[0], ws->pair_cov[0]);
+        }
         for (size_t q = 0u; (q < h->n_tracks) && (twin == MHTC_POOL) && (ws->staged[t].cluster == 0u); ++q) {
             const mhtc_track_t *o = &ws->staged[h->track[q]];
             twin = ((o->cluster > 0u) && mhtc_same_mode(st, in->basis, ws, &ws->staged[t], o) &&
