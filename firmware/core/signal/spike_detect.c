@@ -17,7 +17,7 @@
  * ln of the largest cost ratio double precision can express (about 36.74), so
  * L = +-0.2 moves ln(cost ratio) by about +-7.3. */
 #define SD_L_SCALE 36.7368
-/* Box width of a scale tuned to spike width W: round one's Mexican hat had
+/* Box width of a scale tuned to spike width W: the FIR bank's Mexican hat has
  * envelope W/4; the second difference of a linear B-spline of box w
  * correlates best (>= 0.98) with a Mexican hat of envelope w/1.6, so
  * w = 1.6 * (W / 4) * fs = 0.4 W fs. */

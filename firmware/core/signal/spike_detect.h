@@ -30,7 +30,7 @@
 ///  - streaming (sd_stream_*): what the firmware runs, one sd_stream_t per
 ///    channel (~25 kB), usually through spike_pipeline.h;
 ///  - sd_detector_t (sd_init/sd_push/sd_finish/sd_samples): the OFFLINE
-///    CONVENIENCE PATH of round one, kept as a thin wrapper over the stream.
+///    CONVENIENCE PATH, a thin wrapper over the stream.
 ///    It additionally copies the interval into a caller-owned buffer so that
 ///    the buffer-based extractors of spike_extract.h can be used afterwards.
 #ifndef SPIKE_DETECT_H
@@ -99,7 +99,7 @@ typedef struct {
     double width_max_ms;
     unsigned n_scales;         ///< 1..MD_WAVELET_SCALES_MAX, widths spaced evenly in the range
     double cost_ratio_l;       ///< L in [-0.2, 0.2] (scaled by 36.74 as in the reference code); > 0 favours fewer false alarms
-    /* streaming (appended in round two) */
+    /* streaming */
     double warmup_ms;          ///< statistics prefix, 5 ms .. SD_WARMUP_MAX samples
     double interval_s;         ///< nominal interval length: N of the universal threshold sqrt(2 ln N)
     bool refine;               ///< wavelet: refine M and P(spike) from every coefficient seen so far
@@ -274,7 +274,7 @@ sd_view_t sd_stream_view(const sd_stream_t *st);
 /// view); lo if the range is empty. O(hi - lo).
 uint32_t sd_view_argmin(const sd_view_t *v, uint32_t lo, uint32_t hi);
 
-/* ---- offline convenience path (round one API, wrapper over sd_stream_t) ---- */
+/* ---- offline convenience path (buffered API, wrapper over sd_stream_t) ---- */
 
 /// Detector with an interval copy. Caller-owned; treat members as private.
 typedef struct {

@@ -14,7 +14,7 @@
 /// converted to physical units (`gain`) by the accessors below or directly by
 /// the _i16 entry points of features/pca.h and metrics/quality.h.
 ///
-/// Round one's buffer-based sx_extract_spikes()/sx_extract_noise() are kept
+/// The buffer-based sx_extract_spikes()/sx_extract_noise() are kept
 /// as the OFFLINE CONVENIENCE PATH: thin wrappers running the same window
 /// cutter and snippet picker over a linear interval buffer, with double
 /// output. Nothing is dropped silently: windows at interval edges,
@@ -44,7 +44,7 @@ typedef struct {
     size_t n_noise;    ///< noise snippets wanted, 0..MD_MAX_NOISE_SNIPPETS
     uint32_t guard;    ///< a noise window keeps this many samples clear of every detection
     uint64_t seed;     ///< seed of the snippet positions (deterministic)
-    uint32_t spacing;  ///< mean gap between snippet candidates, samples (appended in round two)
+    uint32_t spacing;  ///< mean gap between snippet candidates, samples
     bool subsample;    ///< align spike windows on the sub-sample minimum (below); noise snippets are never shifted
 } sx_config_t;
 
@@ -151,7 +151,7 @@ md_status_t sx_window_to_double(const sx_windows_t *w, size_t i, double *dst);
 /// Snippet i as doubles in physical units into dst[0..d_w). O(d_w).
 md_status_t sx_snippet_to_double(const sx_snippets_t *s, size_t i, double *dst);
 
-/* ---- offline convenience path (round one API) ---------------------------- */
+/* ---- offline convenience path (buffered API) ------------------------------ */
 
 /// Aligned spike windows of one interval as doubles (caller-owned; ~200 kB).
 typedef struct {
