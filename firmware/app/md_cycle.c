@@ -36,6 +36,7 @@ static void sfsm_cfg_from(const md_params_t *p, sfsm_config_t *cfg)
     cfg->snr_min = md_params_get(p, MD_P_SFSM_SNR_MIN);
     cfg->wait_r = (uint8_t)md_params_get_u32(p, MD_P_SFSM_WAIT_R);
     cfg->lost_cycles = (uint8_t)md_params_get_u32(p, MD_P_SFSM_LOST_CYCLES);
+    cfg->search_span_um = md_params_get(p, MD_P_SFSM_SEARCH_SPAN_UM);
 }
 
 static void sc_cfg_from(const md_params_t *p, sc_config_t *cfg)

@@ -602,6 +602,7 @@ double md_node_param_read(const md_node_t *node, md_param_id_t id, uint64_t now_
     case MD_P_SERVO_MAX_ITER: case MD_P_SERVO_AVG_N: case MD_P_SERVO_STEP_NM: case MD_P_SERVO_RATE_HZ:
     case MD_P_SFSM_GAMMA1: case MD_P_SFSM_GAMMA2: case MD_P_SFSM_GAMMA3: case MD_P_SFSM_WAIT_R:
     case MD_P_SFSM_LOST_CYCLES: case MD_P_SFSM_SNR_DROP: case MD_P_SC_TOL_UM: case MD_P_SFSM_SNR_MIN:
+    case MD_P_SFSM_SEARCH_SPAN_UM:
     case MD_P_MHTC_Q_UV: case MD_P_TRACKER: case MD_P_MHTC_UNIMODAL_RATIO: case MD_P_GUARD_ENABLE: case MD_P_GUARD_GROWTH_STOP:
     case MD_P_GUARD_AMP_SLOW: case MD_P_GUARD_AMP_STOP: case MD_P_GUARD_STEP_NEAR_UM: case MD_P_GUARD_RETRACT_UM: case MD_P_GUARD_CLIMB_FRAC:
         return md_params_get(&node->params, id);

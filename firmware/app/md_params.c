@@ -74,6 +74,9 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                         "SNR-curve optimiser: eq. 2.1 step below this counts as converged"},
     [MD_P_SFSM_SNR_MIN] = {0x2037u, "sfsm_snr_min", "", 0.0, 100.0, 9.0, MD_PARAM_F_MOTION,
                            "SFSM noise floor: a track below this SNR is never dominant (no isolation on noise)"},
+    [MD_P_SFSM_SEARCH_SPAN_UM] = {0x2038u, "sfsm_search_span_um", "um", 0.0, 5000.0, 100.0, MD_PARAM_F_MOTION,
+                                  "SFSM: Spike Search turns this far past the last depth with a dominant track "
+                                  "(twice at most, then searches on; 0: never)"},
     [MD_P_MHTC_Q_UV] = {0x2040u, "mhtc_q_uv", "uV", 0.01, 1000.0, 10.0, MD_PARAM_F_CONFIG,
                         "MHTC process noise std per waveform sample and interval"},
     [MD_P_TRACKER] = {0x2041u, "tracker", "", 0.0, 3.0, 0.0, MD_PARAM_F_CONFIG | MD_PARAM_F_INTEGER,

@@ -173,6 +173,11 @@ static void test_config_defaults_and_checks(void)
     bad.snr_min = NAN;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
     bad = cfg;
+    bad.search_span_um = -1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad.search_span_um = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad = cfg;
     bad.initial_dir = 0;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_init(&sm, &bad));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_init(NULL, &cfg));
@@ -608,6 +613,75 @@ static void test_losing_all_spikes(void)
     }
 }
 
+/* Spike Search with no dominant track from depth `from`, following its own
+ * steps for n cycles; returns the deepest and shallowest depths reached. */
+static void search_blind(double from, unsigned n, double *lo, double *hi, double *at)
+{
+    sfsm_input_t none = base();
+    none.has_dominant = false;
+    none.spikes_seen = false;
+    none.depth_um = from;
+    *lo = from;
+    *hi = from;
+    for (unsigned i = 0u; i < n; ++i) {
+        TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&none));
+        TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+        none.depth_um += out.step_um;
+        *lo = fmin(*lo, none.depth_um);
+        *hi = fmax(*hi, none.depth_um);
+    }
+    *at = none.depth_um;
+}
+
+/* A neuron isolated at 1000 µm falls silent: Spike Search walks out one
+ * span, turns, walks through the neuron's depth to one span on the other
+ * side, turns again and then searches on into new tissue. */
+static void test_search_leash_looks_both_sides_of_a_lost_neuron(void)
+{
+    to_isolated();
+    sfsm_input_t none = base();
+    none.has_dominant = false;
+    none.spikes_seen = false;
+    run(&none, cfg.lost_cycles);
+    TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
+    double lo = 0.0, hi = 0.0, at = 0.0;
+    /* from 1020: 4 steps out to 1100, 10 back to 900, 15 on to 1200 */
+    search_blind(1000.0 + out.step_um, 29u, &lo, &hi, &at);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 900.0, lo);
+    TEST_ASSERT_EQUAL_UINT8(SFSM_LEASH_TURNS, sm.leash_turns);
+    TEST_ASSERT_EQUAL_INT(1, sm.search_dir);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1200.0, at);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1200.0, hi);
+    TEST_ASSERT_EQUAL_UINT8(0u, sm.reversals); /* no window-edge reversal counted */
+    /* a dominant track anywhere sets a new anchor with a fresh leash */
+    sfsm_input_t seen = base();
+    seen.depth_um = at;
+    seen.spikes_seen = false;
+    run(&seen, 1u);
+    TEST_ASSERT_EQUAL_UINT8(0u, sm.leash_turns);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, at, sm.anchor_um);
+}
+
+/* No dominant track yet: nothing to return to, the search goes on; span 0
+ * switches the leash off. */
+static void test_search_leash_needs_an_anchor_and_a_span(void)
+{
+    start();
+    double lo = 0.0, hi = 0.0, at = 0.0;
+    search_blind(1000.0, 20u, &lo, &hi, &at);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1400.0, at);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1000.0, lo);
+    to_isolated();
+    sm.cfg.search_span_um = 0.0;
+    sfsm_input_t none = base();
+    none.has_dominant = false;
+    none.spikes_seen = false;
+    run(&none, cfg.lost_cycles);
+    search_blind(1000.0, 20u, &lo, &hi, &at);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1000.0, lo);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1400.0, at);
+}
+
 static void test_window_edges(void)
 {
     start();
@@ -817,6 +891,8 @@ int main(void)
     RUN_TEST(test_gradient_search_turns_when_snr_falls);
     RUN_TEST(test_omega3_isolates_from_any_state);
     RUN_TEST(test_losing_all_spikes);
+    RUN_TEST(test_search_leash_looks_both_sides_of_a_lost_neuron);
+    RUN_TEST(test_search_leash_needs_an_anchor_and_a_span);
     RUN_TEST(test_window_edges);
     RUN_TEST(test_halt_and_resume);
     RUN_TEST(test_no_motion_while_halted);

@@ -55,6 +55,7 @@ static const sfsm_row_t SFSM_TABLE[] = {
     {B(SFSM_REISOLATE_NEURON), SFSM_C_CURVE_NOT_READY, SFSM_W_NONE, SFSM_REESTIMATE_GRADIENT, SFSM_A_NONE},
     {B(SFSM_REISOLATE_NEURON), SFSM_C_IQM_LOW, SFSM_W_R, SFSM_REESTIMATE_GRADIENT, SFSM_A_NONE},
     {B(SFSM_GRADIENT_SEARCH), SFSM_C_SNR_FALLING, SFSM_W_R, SFSM_GRADIENT_SEARCH, SFSM_A_TURN},
+    {B(SFSM_SPIKE_SEARCH), SFSM_C_LEASH, SFSM_W_NONE, SFSM_SPIKE_SEARCH, SFSM_A_LEASH},
 };
 
 #define SFSM_ROWS (sizeof SFSM_TABLE / sizeof SFSM_TABLE[0])
@@ -100,6 +101,8 @@ static const char *const SFSM_COND_DOC[SFSM_COND_COUNT] = {
     [SFSM_C_SNR_RESTORED] = "dominant SNR (any track) >= isolation SNR",
     [SFSM_C_OTHER_DOMINANT] = "another track is dominant",
     [SFSM_C_SNR_FALLING] = "dominant SNR (any track) < drop fraction × best SNR since entry or turn",
+    [SFSM_C_LEASH] = "search direction × (depth − last depth with a dominant track) >= search span, "
+                     "fewer than 2 leash turns since",
 };
 
 static const char *const SFSM_ACTION_DOC[SFSM_ACTION_COUNT] = {
@@ -110,6 +113,7 @@ static const char *const SFSM_ACTION_DOC[SFSM_ACTION_COUNT] = {
     [SFSM_A_RESTORE] = "keep the original reference",
     [SFSM_A_ADOPT] = "reference track := dominant track (same reference SNR and depth)",
     [SFSM_A_TURN] = "reverse the search direction (no edge reversal counted); best SNR := this SNR",
+    [SFSM_A_LEASH] = "reverse the search direction (no edge reversal counted); leash turns += 1",
 };
 
 static const char *const SFSM_REASON_NAME[SFSM_REASON_COUNT] = {
@@ -177,6 +181,7 @@ void sfsm_config_default(sfsm_config_t *cfg)
     cfg->snr_min = 9.0;
     cfg->wait_r = 3u;
     cfg->lost_cycles = 5u;
+    cfg->search_span_um = 100.0;
     cfg->initial_dir = 1;
 }
 
@@ -197,6 +202,7 @@ md_status_t sfsm_config_check(const sfsm_config_t *cfg)
                     (cfg->gamma2 < cfg->gamma3) && (cfg->snr_drop_frac > 0.0) && (cfg->snr_drop_frac < 1.0) &&
                     isfinite(cfg->snr_min) && (cfg->snr_min >= 0.0) &&
                     (cfg->wait_r >= 1u) && (cfg->wait_r <= SFSM_R_MAX) && (cfg->lost_cycles >= 1u) &&
+                    isfinite(cfg->search_span_um) && (cfg->search_span_um >= 0.0) &&
                     ((cfg->initial_dir == 1) || (cfg->initial_dir == -1));
     return ok ? MD_OK : MD_E_ARG;
 }
@@ -231,6 +237,17 @@ typedef struct {
     bool at_limit;  /* the current state's step is blocked by the window */
 } sfsm_facts_t;
 
+/* The search leash (ours, docs/sfsm.md): a neuron that falls silent, or a
+ * weak one the tracker loses, is still where it was; Spike Search looks on
+ * both sides of the last depth with a dominant track before it walks on into
+ * new tissue. */
+static bool sfsm_leash_reached(const sfsm_t *sm, const sfsm_input_t *in)
+{
+    const double span = sm->cfg.search_span_um;
+    const double past = (double)sm->search_dir * (in->depth_um - sm->anchor_um);
+    return sm->has_anchor && (span > 0.0) && (sm->leash_turns < SFSM_LEASH_TURNS) && (past >= span);
+}
+
 static bool sfsm_cond_holds(const sfsm_t *sm, const sfsm_input_t *in, const sfsm_facts_t *f, sfsm_cond_t c)
 {
     const sfsm_config_t *k = &sm->cfg;
@@ -262,6 +279,7 @@ static bool sfsm_cond_holds(const sfsm_t *sm, const sfsm_input_t *in, const sfsm
      * ID every interval, so no per-track curve gets ready while Gradient
      * Search walks away from a neuron it has passed. */
     case SFSM_C_SNR_FALLING: return v && f->dom && (in->snr < k->snr_drop_frac * sm->seek_best_snr);
+    case SFSM_C_LEASH: return v && sfsm_leash_reached(sm, in);
     case SFSM_COND_COUNT: /* MISRA 16.4 default; -Wswitch-enum still checks every enumerator */
     default: return false;
     }
@@ -383,6 +401,10 @@ static void sfsm_do_action(sfsm_t *sm, const sfsm_input_t *in, sfsm_action_t a)
         sm->search_dir = (int8_t)-sm->search_dir;
         sm->seek_best_snr = in->snr;
         break;
+    case SFSM_A_LEASH:
+        sm->search_dir = (int8_t)-sm->search_dir;
+        sm->leash_turns++;
+        break;
     case SFSM_A_RESTORE:
     case SFSM_A_NONE:
     case SFSM_ACTION_COUNT: /* MISRA 16.4 default */
@@ -451,6 +473,9 @@ md_status_t sfsm_step(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out)
         sm->bad_inputs++;
     } else if (f.dom) {
         sfsm_note_snr(sm, in);
+        sm->has_anchor = true;
+        sm->anchor_um = in->depth_um;
+        sm->leash_turns = 0u;
         if ((sm->state == SFSM_GRADIENT_SEARCH) && (in->snr > sm->seek_best_snr)) {
             sm->seek_best_snr = in->snr;
         }

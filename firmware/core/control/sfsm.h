@@ -27,6 +27,9 @@
 
 #define SFSM_R_MAX 8u      ///< largest WAIT length R
 #define SFSM_ROWS_MAX 32u  ///< capacity of the per-row WAIT counters
+/// Leash turns per anchor: out to one side, back through the anchor to the
+/// other, then on in the first direction into tissue not yet searched.
+#define SFSM_LEASH_TURNS 2u
 
 /// States; the first six are the thesis' (Fig. 2.3), the last two ours.
 typedef enum {
@@ -61,6 +64,7 @@ typedef enum {
     SFSM_C_SNR_RESTORED,        ///< dominant SNR (any track) >= the isolation SNR
     SFSM_C_OTHER_DOMINANT,      ///< the dominant track is not the isolated one
     SFSM_C_SNR_FALLING,         ///< dominant SNR < drop fraction × the best SNR of this Gradient Search
+    SFSM_C_LEASH,               ///< Spike Search is search_span_um past the last depth with a dominant track
     SFSM_COND_COUNT
 } sfsm_cond_t;
 
@@ -80,6 +84,7 @@ typedef enum {
     SFSM_A_RESTORE,   ///< keep the original isolation reference
     SFSM_A_ADOPT,     ///< reference track := dominant track; reference SNR and depth kept
     SFSM_A_TURN,      ///< reverse the search direction (not a window-edge reversal), best SNR := now
+    SFSM_A_LEASH,     ///< reverse the search direction, count the leash turn
     SFSM_ACTION_COUNT
 } sfsm_action_t;
 
@@ -131,6 +136,7 @@ typedef struct {
     double snr_min;           ///< a track below this SNR is noise floor, never dominant (default 9, ours)
     uint8_t wait_r;           ///< R of WAIT transitions (default 3)
     uint8_t lost_cycles;      ///< cycles without a dominant track before Spike Search (default 5)
+    double search_span_um;    ///< Spike Search turns this far past the last dominant track (default 100, 0: never; ours)
     int8_t initial_dir;       ///< first search direction: +1 advance (default), -1 retract
 } sfsm_config_t;
 
@@ -183,13 +189,17 @@ typedef struct {
     uint32_t transitions;
     uint32_t bad_inputs;             ///< cycles rejected by input validation
     double seek_best_snr;            ///< best dominant SNR since Gradient Search was entered / turned
+    bool has_anchor;                 ///< a dominant track has been seen
+    double anchor_um;                ///< depth where a dominant track was last seen
+    uint8_t leash_turns;             ///< leash turns since the anchor was set (at most SFSM_LEASH_TURNS)
 } sfsm_t;
 
 /// Documented defaults.
 void sfsm_config_default(sfsm_config_t *cfg);
 
 /// MD_OK if 0 < steps <= Δmax (finite), 0 < γ1 < γ2 < γ3, 0 < drop < 1,
-/// snr_min >= 0 (finite), 1 <= R <= SFSM_R_MAX, lost_cycles >= 1, initial_dir = ±1; else MD_E_ARG.
+/// snr_min >= 0 (finite), 1 <= R <= SFSM_R_MAX, lost_cycles >= 1, search_span_um >= 0 (finite),
+/// initial_dir = ±1; else MD_E_ARG.
 md_status_t sfsm_config_check(const sfsm_config_t *cfg);
 
 /// Starts in Spike Search. MD_E_ARG on NULL or an invalid config. O(1).
