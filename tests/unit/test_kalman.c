@@ -189,6 +189,84 @@ static void test_conservative_above_rank_bound(void)
     TEST_ASSERT_LESS_THAN_DOUBLE(1.0, max_abs_diff(st.x, g_x, DW));
 }
 
+/* A move scales the whole waveform by an uncertain factor: Q = qI + s2 x̂x̂ᵀ,
+ * exact against the dense filter below the rank bound, and the update then
+ * follows a scaled measurement along x̂ much further than with Q = qI. */
+static void test_scaled_prediction(void)
+{
+    md_rng_t rng;
+    md_rng_seed(&rng, 13u);
+    kf_state_t st;
+    init_both(&st, &rng, 2.0);
+    const double q = 0.25, s2 = 0.09;
+    double xk[DW];
+    memcpy(xk, st.x, sizeof xk);
+    TEST_ASSERT_EQUAL_INT(MD_OK, kf_predict_scaled(&st, q, s2, &g_ws));
+    for (size_t i = 0u; i < DW; ++i) {
+        for (size_t j = 0u; j < DW; ++j) {
+            g_lam[i * DW + j] += ((i == j) ? q : 0.0) + s2 * xk[i] * xk[j];
+        }
+    }
+    kf_covariance(&st, g_low);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-4, 0.0, max_abs_diff(g_low, g_lam, DW * DW));
+    TEST_ASSERT_EQUAL_MEMORY(xk, st.x, sizeof xk); /* x̂ unchanged (F = I) */
+    /* a measurement of 1.3 x̂ through a basis containing x̂'s direction */
+    double h[D * DW] = {0}, mu[D], r[D * D] = {0.5, 0.0, 0.0, 0.5};
+    double nx = 0.0;
+    for (size_t i = 0u; i < DW; ++i) {
+        nx += xk[i] * xk[i];
+    }
+    for (size_t i = 0u; i < DW; ++i) {
+        h[i] = xk[i] / sqrt(nx);
+    }
+    h[DW + ((fabs(h[0]) < 0.5) ? 0u : 1u)] = 1.0; /* any second unit row */
+    double dot = 0.0;
+    for (size_t i = 0u; i < DW; ++i) {
+        dot += h[i] * h[DW + i];
+    }
+    for (size_t i = 0u; i < DW; ++i) {
+        h[DW + i] -= dot * h[i];
+    }
+    double n2 = 0.0;
+    for (size_t i = 0u; i < DW; ++i) {
+        n2 += h[DW + i] * h[DW + i];
+    }
+    for (size_t i = 0u; i < DW; ++i) {
+        h[DW + i] /= sqrt(n2);
+    }
+    mu[0] = 1.3 * sqrt(nx);
+    double m1 = 0.0;
+    for (size_t i = 0u; i < DW; ++i) {
+        m1 += h[DW + i] * xk[i];
+    }
+    mu[1] = 1.3 * m1;
+    kf_state_t iso;
+    TEST_ASSERT_EQUAL_INT(MD_OK, kf_update(&st, h, D, mu, r, &g_ws));
+    dense_update(h, mu, r);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-4, 0.0, max_abs_diff(st.x, g_x, DW));
+    /* the same update after Q = qI only */
+    init_both(&iso, &rng, 2.0);
+    memcpy(iso.x, xk, sizeof xk);
+    TEST_ASSERT_EQUAL_INT(MD_OK, kf_predict(&iso, q));
+    TEST_ASSERT_EQUAL_INT(MD_OK, kf_update(&iso, h, D, mu, r, &g_ws));
+    double along = 0.0, along_iso = 0.0;
+    for (size_t i = 0u; i < DW; ++i) {
+        along += h[i] * st.x[i];
+        along_iso += h[i] * iso.x[i];
+    }
+    const double target = mu[0] - sqrt(nx);
+    TEST_ASSERT_GREATER_THAN_DOUBLE(0.95 * target, along - sqrt(nx));
+    TEST_ASSERT_LESS_THAN_DOUBLE(along - sqrt(nx), along_iso - sqrt(nx));
+    /* s2 = 0 is kf_predict; bad arguments are refused */
+    const double a_before = st.a;
+    TEST_ASSERT_EQUAL_INT(MD_OK, kf_predict_scaled(&st, q, 0.0, &g_ws));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, a_before + q, st.a);
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, kf_predict_scaled(&st, q, -1.0, &g_ws));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, kf_predict_scaled(&st, q, NAN, &g_ws));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, kf_predict_scaled(&st, -1.0, s2, &g_ws));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, kf_predict_scaled(&st, q, s2, NULL));
+}
+
 static void test_predict_measure(void)
 {
     kf_state_t st;
@@ -227,6 +305,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_exact_below_rank_bound);
     RUN_TEST(test_conservative_above_rank_bound);
+    RUN_TEST(test_scaled_prediction);
     RUN_TEST(test_predict_measure);
     RUN_TEST(test_rejects_bad_input);
     return UNITY_END();

@@ -140,6 +140,45 @@ static void kf_project_lowrank(const kf_state_t *st, kf_work_t *ws, size_t k)
     }
 }
 
+md_status_t kf_predict_scaled(kf_state_t *st, double q, double s2, kf_work_t *ws)
+{
+    if ((st == NULL) || (ws == NULL) || !(s2 >= 0.0) || !isfinite(s2) || (st->d_w > KF_DW_MAX)) {
+        return MD_E_ARG;
+    }
+    const size_t n = st->d_w;
+    const double xx = kf_dot(st->x, st->x, n);
+    if (!(s2 > 0.0) || !(xx > 0.0)) {
+        return kf_predict(st, q);
+    }
+    if (!(q >= 0.0) || !isfinite(q)) {
+        return MD_E_ARG;
+    }
+    size_t k = 0u;
+    double v[KF_DW_MAX];
+    for (size_t r = 0u; r < st->rank; ++r) {
+        for (size_t i = 0u; i < n; ++i) {
+            v[i] = (double)st->v[r][i];
+        }
+        kf_gs_append(ws, &k, v, n);
+    }
+    kf_gs_append(ws, &k, st->x, n);
+    kf_project_lowrank(st, ws, k);
+    double c[KF_SPAN_MAX];
+    for (size_t j = 0u; j < k; ++j) {
+        c[j] = kf_dot(ws->w[j], st->x, n);
+    }
+    for (size_t i = 0u; i < k; ++i) {
+        for (size_t j = 0u; j < k; ++j) {
+            ws->m[i * k + j] += s2 * c[i] * c[j];
+        }
+    }
+    if (kf_rebuild(st, ws, k) != MD_OK) { /* fails before it writes st */
+        return MD_E_NUMERIC;
+    }
+    st->a += q;
+    return MD_OK;
+}
+
 md_status_t kf_init(kf_state_t *st, size_t d_w, const double *x0, double a0, const double *h, size_t d,
                     const double *r, kf_work_t *ws)
 {

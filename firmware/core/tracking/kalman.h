@@ -15,6 +15,9 @@
 /// approximation is conservative. Below the rank bound it is exact (the unit
 /// test compares with a dense filter).
 ///
+/// A positive direction (kf_predict_scaled) is the one exception to e_i ≤ 0:
+/// it is kept while its |e_i| is among the KF_RANK_MAX largest.
+///
 /// Memory: kf_state_t is ~2.3 KB at d_w = 48; kf_work_t is caller scratch.
 /// Time: predict O(1); measure O(r d d_w); update O((r+d)^2 d_w + (r+d)^3).
 #ifndef KALMAN_H
@@ -66,6 +69,16 @@ md_status_t kf_init(kf_state_t *st, size_t d_w, const double *x0, double a0, con
 
 /// eq. 4.7-4.8 with F = I, Q = q·I (q ≥ 0): x̂ unchanged, a += q.
 md_status_t kf_predict(kf_state_t *st, double q);
+
+/// eq. 4.7-4.8 with an uncertain gain of the whole waveform on top:
+/// Q = q·I + s2·x̂ x̂ᵀ. s2 ≥ 0 is the variance of the relative amplitude change
+/// (the electrode moved: every sample of a neuron's waveform scales by the
+/// same factor, so the uncertainty lies along x̂ itself, not in every
+/// direction). s2 = 0 or x̂ = 0 is kf_predict. The new direction joins the
+/// low-rank part; past KF_RANK_MAX the smallest |e_i| are dropped (as in
+/// kf_update). MD_E_ARG on bad q/s2, MD_E_NUMERIC if the eigen-decomposition
+/// fails (st unchanged then). O((r+1)^2 d_w + (r+1)^3).
+md_status_t kf_predict_scaled(kf_state_t *st, double q, double s2, kf_work_t *ws);
 
 /// Predicted measurement μ̂ = H x̂ (eq. 4.9) and H Λ Hᵀ (the first term of
 /// S, eq. 4.13) for h (d × d_w). mu: d values, hlh: d × d. O(r d d_w).

@@ -170,17 +170,12 @@ void mhtc_map_sigma(const mhtc_track_t *t, const double *h, size_t d, size_t dw,
     }
 }
 
-double mhtc_process_noise(const mhtc_state_t *st, const mhtc_track_t *t, double move_um)
+md_status_t mhtc_predict_record(const mhtc_state_t *st, kf_state_t *kf, double move_um, kf_work_t *ws)
 {
+    /* Moving the electrode scales a neuron's whole waveform (amplitude law
+     * A ∝ 1/(1 + (d/d0)²)): the uncertainty it adds lies along x̂. */
     const double s = st->cfg.q_move_per_um * move_um;
-    if (!(s > 0.0) || (t->kf.d_w == 0u)) {
-        return st->cfg.q_process;
-    }
-    double ms = 0.0;
-    for (size_t i = 0u; i < t->kf.d_w; ++i) {
-        ms += t->kf.x[i] * t->kf.x[i];
-    }
-    return st->cfg.q_process + s * s * ms / (double)t->kf.d_w;
+    return kf_predict_scaled(kf, st->cfg.q_process, s * s, ws);
 }
 
 /* Step 1: eq. 4.7-4.9 and S_j (eq. 4.13) of every live record, once per record. */
@@ -195,7 +190,7 @@ static md_status_t mhtc_predict_pool(const mhtc_state_t *st, const mhtc_input_t 
         }
         kf_state_t kf = t->kf;
         double hlh[EM_D_MAX * EM_D_MAX];
-        if ((kf_predict(&kf, mhtc_process_noise(st, t, in->move_um)) != MD_OK) ||
+        if ((mhtc_predict_record(st, &kf, in->move_um, &ws->kf) != MD_OK) ||
             (kf_measure(&kf, in->basis->b, d, ws->pred_mu[r], hlh) != MD_OK)) {
             return MD_E_NUMERIC;
         }

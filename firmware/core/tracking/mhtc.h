@@ -106,8 +106,8 @@ typedef struct {
     uint32_t nn_k_miss;          ///< the same for MAP-NN / ML-NN (1)
     double q_process;            ///< Q = q·I, waveform units² per interval (> 0)
     double init_var;             ///< variance of unmeasured waveform directions of a new track (> 0)
-    double q_move_per_um;        ///< electrode travel adds (κ·travel)² × the track's mean squared waveform
-                                 ///< sample to Q (κ = this, relative amplitude change per µm, 1 σ;
+    double q_move_per_um;        ///< electrode travel adds (κ·travel)²·x̂x̂ᵀ to Q: an uncertain gain of the
+                                 ///< whole waveform (κ = this, relative amplitude change per µm, 1 σ;
                                  ///< thesis §4.6); 0 = Q independent of travel
     cluster_evidence_t evidence; ///< P4: Laplace (thesis) or BIC
     em_options_t em;             ///< EM iteration bound/tolerance

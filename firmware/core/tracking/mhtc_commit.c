@@ -224,7 +224,8 @@ static void mhtc_make_record(mhtc_state_t *st, const mhtc_input_t *in, mhtc_work
     const mhtc_config_t *cfg = &st->cfg;
     if (src >= 0) {
         *t = st->pool[src];
-        (void)kf_predict(&t->kf, mhtc_process_noise(st, t, in->move_um)); /* eq. 4.7-4.8 (q validated) */
+        /* eq. 4.7-4.8; the same prediction succeeded in step 1 */
+        (void)mhtc_predict_record(st, &t->kf, in->move_um, &ws->kf);
     } else {
         memset(t, 0, sizeof *t);
     }

@@ -37,9 +37,10 @@ md_status_t mhtc_baseline(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspa
 /// with a small ridge so it stays SPD, into c (d × d).
 void mhtc_map_sigma(const mhtc_track_t *t, const double *h, size_t d, size_t dw, double *c);
 
-/// Q of record t for an interval after `move_um` of electrode travel (eq. 4.8 with the
-/// travel term of mhtc_config_t.q_move_per_um): waveform units² per sample.
-double mhtc_process_noise(const mhtc_state_t *st, const mhtc_track_t *t, double move_um);
+/// Prediction of a record's filter for an interval after `move_um` of electrode
+/// travel (eq. 4.7-4.8): Q = q·I plus, from the travel, an uncertain gain of
+/// the whole waveform (variance (q_move_per_um · move_um)², kf_predict_scaled).
+md_status_t mhtc_predict_record(const mhtc_state_t *st, kf_state_t *kf, double move_um, kf_work_t *ws);
 
 /// Adds a usable G = 0 model (every track missed) for parent p; returns its slot or MHTC_MODELS_MAX.
 size_t mhtc_empty_model(mhtc_state_t *st, mhtc_workspace_t *ws, size_t p);
