@@ -368,6 +368,36 @@ static void test_isolated_snr_drop_rule(void)
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 8.0, sm.ref_snr);
 }
 
+/* The neuron comes closer after isolation (tissue relaxation): R cycles of
+ * the isolated track at a higher SNR raise the reference, so a later drift
+ * is measured against the best SNR here; one loud interval, another track or
+ * another depth do not. */
+static void test_isolated_reference_follows_a_louder_neuron(void)
+{
+    to_isolated(); /* reference 8 at 1000 µm */
+    sfsm_input_t in = base();
+    in.snr = 12.0;
+    run(&in, 1u); /* the window's mean: (8 + 8 + 12) / 3 */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, (2.0 * 8.0 + 12.0) / 3.0, sm.ref_snr);
+    run(&in, cfg.wait_r - 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 12.0, sm.ref_snr);
+    in.snr = 0.86 * 12.0; /* above 85 % of the raised reference: hold */
+    run(&in, 2u * cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 12.0, sm.ref_snr); /* never lowered */
+    in.snr = 0.84 * 12.0; /* the drift the old reference (8) would have missed */
+    run(&in, cfg.wait_r);
+    TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
+    /* another track, however loud, never raises the isolated neuron's reference */
+    to_isolated();
+    in = base();
+    in.dominant_track = TRACK_A + 1u;
+    in.snr = 8.5;
+    in.iqm = 3.0;
+    run(&in, cfg.wait_r - 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 8.0, sm.ref_snr);
+}
+
 static void test_reestimate_to_reisolate_and_back(void)
 {
     to_reestimate();
@@ -884,6 +914,7 @@ int main(void)
     RUN_TEST(test_isolate_declares_after_r_converged_cycles);
     RUN_TEST(test_isolate_falls_back_to_gradient_search);
     RUN_TEST(test_isolated_snr_drop_rule);
+    RUN_TEST(test_isolated_reference_follows_a_louder_neuron);
     RUN_TEST(test_reestimate_to_reisolate_and_back);
     RUN_TEST(test_reisolate_exits);
     RUN_TEST(test_other_dominant_is_adopted);

@@ -101,8 +101,7 @@ static const char *const SFSM_COND_DOC[SFSM_COND_COUNT] = {
     [SFSM_C_SNR_RESTORED] = "dominant SNR (any track) >= isolation SNR",
     [SFSM_C_OTHER_DOMINANT] = "another track is dominant",
     [SFSM_C_SNR_FALLING] = "dominant SNR (any track) < drop fraction × best SNR since entry or turn",
-    [SFSM_C_LEASH] = "search direction × (depth − last depth with a dominant track) >= search span, "
-                     "fewer than 2 leash turns since",
+    [SFSM_C_LEASH] = "search span or more past the last depth with a dominant track, < 2 leash turns since",
 };
 
 static const char *const SFSM_ACTION_DOC[SFSM_ACTION_COUNT] = {
@@ -379,6 +378,23 @@ static double sfsm_recent_mean(const sfsm_t *sm)
     return s / (double)sm->recent_n;
 }
 
+/* Reference ratchet (ours, docs/sfsm.md): Ω3 can declare isolation tens of
+ * µm before the peak and tissue relaxation then brings the neuron closer;
+ * the 85 % rule must measure a later drift against what the neuron gives at
+ * its best here, not against the SNR of the moment of isolation. Only a full
+ * window of R cycles of the isolated track at this depth raises it. */
+static void sfsm_raise_reference(sfsm_t *sm, const sfsm_facts_t *f)
+{
+    if ((sm->state != SFSM_NEURON_ISOLATED) || !sm->has_ref || !f->ours || (sm->recent_n < sm->cfg.wait_r) ||
+        (fabs(sm->recent_depth_um - sm->ref_depth_um) > SFSM_SAME_DEPTH_UM)) {
+        return;
+    }
+    const double m = sfsm_recent_mean(sm);
+    if (m > sm->ref_snr) {
+        sm->ref_snr = m;
+    }
+}
+
 static void sfsm_do_action(sfsm_t *sm, const sfsm_input_t *in, sfsm_action_t a)
 {
     switch (a) {
@@ -473,6 +489,7 @@ md_status_t sfsm_step(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out)
         sm->bad_inputs++;
     } else if (f.dom) {
         sfsm_note_snr(sm, in);
+        sfsm_raise_reference(sm, &f);
         sm->has_anchor = true;
         sm->anchor_um = in->depth_um;
         sm->leash_turns = 0u;
