@@ -8,8 +8,8 @@ the DBC). The bridge replays its candump log with the truth file and writes an
 LCM event log; the log is decoded with LCM's own Python bindings and the
 lcm-gen -p types, and every message is compared with what the fixture encoded:
 every telemetry frame kind (TLM_STATUS, TLM_CYCLE, TLM_TRACK + TLM_WAVE,
-TLM_HYP, TLM_SPIKES, ACT_STATUS, HALL_READING with calibrated depth,
-HALL_CALIB) and every truth record kind (session, neuron, spike, state,
+TLM_HYP, TLM_SPIKES, ACT_STATUS, HALL_READING with calibrated depth, batched
+per electrode and SIM_CLOCK time, HALL_CALIB) and every truth record kind (session, neuron, spike, state,
 death). Also: the log is byte-identical on a second run and when the bridge
 also publishes on memq://, event timestamps never decrease, malformed input
 is counted and not fatal, usage errors exit 2 and a missing file exits 1.
@@ -25,6 +25,8 @@ import sys
 import lcm
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "..", "tools", "plots"))
+from lcm_session import hall_readings  # noqa: E402
 FAILS = []
 
 
@@ -116,6 +118,21 @@ def check_spikes(got, exp):
               where + " interval start / rate")
 
 
+def check_hall(got, exp):
+    """Every reading once, in order per electrode, with its fields; one message per electrode and utime (the
+    fixture's readings between two SIM_CLOCK frames)."""
+    readings = hall_readings(got)
+    for e in sorted({x["electrode"] for x in exp}):
+        compare_fields(f"MD_HALL e{e}", [r for r in readings if r.electrode == e],
+                       [x for x in exp if x["electrode"] == e], ["utime", "seq", "raw_code", "sample_time_ms"])
+    check(all(r.calibrated and close(r.depth_um, x["depth_um"], 1e-6)
+              for r, x in zip(sorted(readings, key=lambda r: r.electrode), sorted(exp, key=lambda x: x["electrode"]))),
+          "Hall depth from the calibration")
+    runs = {(x["electrode"], x["utime"]) for x in exp}
+    check(len(got) == len(runs) and all(0 < m.num_readings <= m.MAX_READINGS for m in got),
+          f"MD_HALL: {len(got)} messages for {len(runs)} (electrode, utime) runs")
+
+
 def check_truth(got, truth_path, exp):
     recs = [json.loads(line) for line in open(truth_path)]
     sess = got["MD_TRUTH_SESSION"]
@@ -203,9 +220,7 @@ def main():
     check_spikes(got["MD_SPIKES"], exp["MD_SPIKES"])
     compare_fields("MD_ACTUATOR", got["MD_ACTUATOR"], exp["MD_ACTUATOR"],
                    ["electrode", "utime", "state", "cmd_seq", "steps_done", "steps_remaining"])
-    compare_fields("MD_HALL", got["MD_HALL"], exp["MD_HALL"], ["electrode", "utime", "seq", "raw_code"])
-    check(all(m.calibrated and close(m.depth_um, x["depth_um"], 1e-6)
-              for m, x in zip(got["MD_HALL"], exp["MD_HALL"])), "Hall depth from the calibration")
+    check_hall(got["MD_HALL"], exp["MD_HALL"])
     calib = got["MD_HALL_CALIB"]
     check(len(calib) == 2 and all(list(c.coeff_um) == x["coeff_um"] and c.code_mid == x["code_mid"]
                                   for c, x in zip(calib, exp["MD_HALL_CALIB"])), "one Hall calibration per electrode")

@@ -4,8 +4,9 @@
 /// checked field by field. Covers the grouping rules of docs/telemetry.md
 /// (TLM_STATUS closes a complete cycle, a new cycle flushes the old one, late
 /// frames are counted), wave parts in any order, Hall calibration (published
-/// once per change, depth from the polynomial), the sim clock, malformed and
-/// out-of-range input, and the truth-line parser.
+/// once per change, depth from the polynomial), Hall readings batched per
+/// electrode and clock value, the sim clock, malformed and out-of-range input,
+/// and the truth-line parser.
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -317,41 +318,150 @@ static void feed_calib(uint8_t e, uint8_t index, uint8_t n, float v)
     FEED(hall_calib, HALL_CALIB, &c);
 }
 
+static void feed_hall(uint8_t e, uint8_t seq, uint16_t code, uint32_t time_ms)
+{
+    struct md_can_hall_reading_t r = {.electrode = e, .seq = seq, .raw_code = code, .sample_time_ms = time_ms};
+    FEED(hall_reading, HALL_READING, &r);
+}
+
+/// Decodes the k-th MD_HALL message into *h (clean up with microdrive_hall_t_decode_cleanup).
+static void decode_hall(int k, microdrive_hall_t *h)
+{
+    const int i = find(LB_CH_HALL, k);
+    TEST_ASSERT_TRUE(i >= 0);
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_hall_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], h));
+    TEST_ASSERT_EQUAL_INT64(g_cap.utime[i], h->utime);
+}
+
 static void test_hall_calibration_and_reading(void)
 {
-    struct md_can_hall_reading_t r = {.electrode = 1, .seq = 9, .raw_code = 40000, .sample_time_ms = 1234};
-    FEED(hall_reading, HALL_READING, &r); /* before any calibration */
+    feed_hall(1, 9, 40000, 1234); /* before any calibration */
     feed_calib(1, 0, 3, 1000.0f);
     feed_calib(1, 1, 3, 400.0f);
     feed_calib(1, 2, 3, -8.0f);
     feed_calib(1, MD_HALL_CALIB_INDEX_CODE_MID, 3, 32768.0f);
     TEST_ASSERT_EQUAL_INT(0, count(LB_CH_HALL_CALIB));
+    TEST_ASSERT_EQUAL_INT(0, count(LB_CH_HALL)); /* same clock: the reading waits for more */
     feed_calib(1, MD_HALL_CALIB_INDEX_CODE_HALF, 3, 16384.0f);
     TEST_ASSERT_EQUAL_INT(1, count(LB_CH_HALL_CALIB));
+    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_HALL)); /* the uncalibrated reading went out before the calibration */
+    TEST_ASSERT_TRUE(find(LB_CH_HALL, 0) < find(LB_CH_HALL_CALIB, 0));
     feed_calib(1, 1, 3, 400.0f); /* the periodic repeat: unchanged, not published again */
     TEST_ASSERT_EQUAL_INT(1, count(LB_CH_HALL_CALIB));
-    FEED(hall_reading, HALL_READING, &r);
+    feed_hall(1, 10, 40000, 1244);
+    feed_hall(1, 11, 40100, 1254);
+    lb_flush(g_st);
+    TEST_ASSERT_EQUAL_INT(2, count(LB_CH_HALL));
 
     microdrive_hall_t h;
-    int i = find(LB_CH_HALL, 0);
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_hall_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &h));
+    decode_hall(0, &h);
     TEST_ASSERT_FALSE(h.calibrated);
-    i = find(LB_CH_HALL, 1);
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_hall_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &h));
+    TEST_ASSERT_EQUAL_INT(1, h.num_readings);
+    TEST_ASSERT_EQUAL_INT(9, h.seq[0]);
+    TEST_ASSERT_EQUAL_INT(40000, h.raw_code[0]);
+    TEST_ASSERT_EQUAL_INT64(1234, h.sample_time_ms[0]);
+    TEST_ASSERT_EQUAL_DOUBLE(0.0, h.depth_um[0]);
+    microdrive_hall_t_decode_cleanup(&h);
+    decode_hall(1, &h);
     TEST_ASSERT_TRUE(h.calibrated);
-    TEST_ASSERT_EQUAL_INT(40000, h.raw_code);
-    TEST_ASSERT_EQUAL_INT(9, h.seq);
-    TEST_ASSERT_EQUAL_INT64(1234, h.sample_time_ms);
-    const double x = (40000.0 - 32768.0) / 16384.0;
-    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1000.0 + 400.0 * x - 8.0 * x * x, h.depth_um);
+    TEST_ASSERT_EQUAL_INT(1, h.electrode);
+    TEST_ASSERT_EQUAL_INT(2, h.num_readings);
+    TEST_ASSERT_EQUAL_INT(10, h.seq[0]);
+    TEST_ASSERT_EQUAL_INT(11, h.seq[1]);
+    TEST_ASSERT_EQUAL_INT(40100, h.raw_code[1]);
+    TEST_ASSERT_EQUAL_INT64(1254, h.sample_time_ms[1]);
+    for (int k = 0; k < 2; ++k) {
+        const double x = ((double)h.raw_code[k] - 32768.0) / 16384.0;
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1000.0 + 400.0 * x - 8.0 * x * x, h.depth_um[k]);
+    }
+    microdrive_hall_t_decode_cleanup(&h);
 
     microdrive_hall_calib_t c;
-    i = find(LB_CH_HALL_CALIB, 0);
+    const int i = find(LB_CH_HALL_CALIB, 0);
     TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_hall_calib_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &c));
     TEST_ASSERT_EQUAL_INT(3, c.num_coeffs);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, -8.0, c.coeff_um[2]);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 16384.0, c.code_half);
     microdrive_hall_calib_t_decode_cleanup(&c);
+}
+
+/* One hall_t per electrode and clock value: the readings of each electrode in
+ * order, published when SIM_CLOCK moves (before anything stamped later), when
+ * MAX_READINGS are held, and at lb_flush; every reading is in exactly one. */
+static void test_hall_batches(void)
+{
+    feed_clock(1000u);
+    for (uint32_t k = 0u; k < 3u; ++k) {
+        feed_hall(0, (uint8_t)(254u + k), (uint16_t)(100u + k), 1u + k); /* seq wraps 254, 255, 0 */
+        feed_hall(2, (uint8_t)k, (uint16_t)(200u + k), 1u + k);
+    }
+    TEST_ASSERT_EQUAL_INT(0, count(LB_CH_HALL));
+    feed_clock(1000u); /* the same time again: nothing due */
+    TEST_ASSERT_EQUAL_INT(0, count(LB_CH_HALL));
+    feed_clock(2000u);
+    TEST_ASSERT_EQUAL_INT(2, count(LB_CH_HALL));
+    microdrive_hall_t h;
+    decode_hall(0, &h);
+    TEST_ASSERT_EQUAL_INT64(1000, h.utime);
+    TEST_ASSERT_EQUAL_INT(0, h.electrode);
+    TEST_ASSERT_EQUAL_INT(3, h.num_readings);
+    TEST_ASSERT_EQUAL_INT(254, h.seq[0]);
+    TEST_ASSERT_EQUAL_INT(255, h.seq[1]);
+    TEST_ASSERT_EQUAL_INT(0, h.seq[2]);
+    TEST_ASSERT_EQUAL_INT(102, h.raw_code[2]);
+    TEST_ASSERT_EQUAL_INT64(3, h.sample_time_ms[2]);
+    microdrive_hall_t_decode_cleanup(&h);
+    decode_hall(1, &h);
+    TEST_ASSERT_EQUAL_INT(2, h.electrode);
+    TEST_ASSERT_EQUAL_INT(3, h.num_readings);
+    TEST_ASSERT_EQUAL_INT(200, h.raw_code[0]);
+    microdrive_hall_t_decode_cleanup(&h);
+
+    const int full = MICRODRIVE_HALL_T_MAX_READINGS;
+    for (int k = 0; k < full + 5; ++k) {
+        feed_hall(0, (uint8_t)k, (uint16_t)k, (uint32_t)k);
+    }
+    TEST_ASSERT_EQUAL_INT(3, count(LB_CH_HALL)); /* the full one, at once */
+    decode_hall(2, &h);
+    TEST_ASSERT_EQUAL_INT(full, h.num_readings);
+    TEST_ASSERT_EQUAL_INT64(2000, h.utime);
+    TEST_ASSERT_EQUAL_INT(full - 1, h.raw_code[full - 1]);
+    microdrive_hall_t_decode_cleanup(&h);
+    feed_hall(LB_MAX_ELECTRODES, 0, 0, 0); /* beyond the bridge's electrodes: counted, not kept */
+    TEST_ASSERT_EQUAL_UINT64(1, lb_stats(g_st)->dropped);
+    lb_flush(g_st);
+    TEST_ASSERT_EQUAL_INT(4, count(LB_CH_HALL));
+    decode_hall(3, &h);
+    TEST_ASSERT_EQUAL_INT(5, h.num_readings);
+    TEST_ASSERT_EQUAL_INT(full + 4, h.raw_code[4]);
+    microdrive_hall_t_decode_cleanup(&h);
+    lb_flush(g_st);
+    TEST_ASSERT_EQUAL_INT(4, count(LB_CH_HALL));
+}
+
+/* Frame time: a batch ends at the first frame of a later time, of any kind. */
+static void test_hall_batches_frame_time(void)
+{
+    TEST_ASSERT_EQUAL_INT(0, lb_init(g_st, LB_TIME_FRAME, capture, &g_cap));
+    struct md_can_hall_reading_t r = {.electrode = 0, .seq = 1, .raw_code = 5, .sample_time_ms = 7};
+    uint8_t buf[8] = {0};
+    TEST_ASSERT_EQUAL_INT(MD_CAN_HALL_READING_LENGTH, md_can_hall_reading_pack(buf, &r, sizeof buf));
+    md_frame_t f = frame_of(MD_CAN_HALL_READING_FRAME_ID, buf, MD_CAN_HALL_READING_LENGTH);
+    lb_feed_frame(g_st, &f, 500);
+    lb_feed_frame(g_st, &f, 500);
+    TEST_ASSERT_EQUAL_INT(0, count(LB_CH_HALL));
+    uint8_t hb[8] = {5, 1, 0, 3, 0, 0, 0, 0};
+    md_frame_t beat = frame_of(MD_CAN_HEARTBEAT_CTRL_FRAME_ID, hb, sizeof hb);
+    lb_feed_frame(g_st, &beat, 510);
+    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_HALL));
+    microdrive_hall_t h;
+    decode_hall(0, &h);
+    TEST_ASSERT_EQUAL_INT64(500, h.utime);
+    TEST_ASSERT_EQUAL_INT(2, h.num_readings);
+    microdrive_hall_t_decode_cleanup(&h);
+    lb_feed_frame(g_st, &f, 520);
+    lb_flush(g_st);
+    TEST_ASSERT_EQUAL_INT(2, count(LB_CH_HALL));
 }
 
 static void test_actuator_status(void)
@@ -488,6 +598,8 @@ int main(void)
     RUN_TEST(test_flush_publishes_open_groups);
     RUN_TEST(test_cycle_record_feeds_spike_times);
     RUN_TEST(test_hall_calibration_and_reading);
+    RUN_TEST(test_hall_batches);
+    RUN_TEST(test_hall_batches_frame_time);
     RUN_TEST(test_actuator_status);
     RUN_TEST(test_malformed_and_out_of_range_counted);
     RUN_TEST(test_truth_lines);

@@ -328,7 +328,9 @@ def spikes_frames(w, rnd, e, k, t0, t1, spikes, label):
 
 
 def plant_frames(w, els, k, t1, exp):
-    """The move after the cycle (ACT_STATUS moving/idle) and Hall readings every 0.5 s."""
+    """The move after the cycle (ACT_STATUS moving/idle), then Hall readings every 0.1 s for 1 s with a SIM_CLOCK
+    every 0.5 s (readings outnumber clock frames, as on the simulator's bus): the bridge's time, and so each
+    reading's utime, is the last SIM_CLOCK's."""
     for e in els:
         e.act_seq = (e.act_seq + 1) % 256
         e.steps = int(round(getattr(e, "step", 0.0) / 2.0))
@@ -343,15 +345,17 @@ def plant_frames(w, els, k, t1, exp):
                                        "steps_done": done, "steps_remaining": e.steps - done})
     for e in els:
         e.depth += getattr(e, "step", 0.0)
-    for i in range(4):
-        t = t1 + 1000000 + i * 250000
-        w.clock(t)
+    for i in range(10):
+        t = t1 + 1000000 + i * 100000
+        if i % 5 == 0:
+            w.clock(t)
+            t_clock = t
         for e in els:
             code = int(round(CALIB["mid"] + CALIB["half"] * (e.depth - CALIB["c"][0]) / CALIB["c"][1]))
             w.frame(t, "HALL_READING", Electrode=e.index, Seq=e.hall_seq, RawCode=code, SampleTime_ms=t // 1000)
             depth = CALIB["c"][0] + CALIB["c"][1] * (code - CALIB["mid"]) / CALIB["half"]
-            exp["MD_HALL"].append({"electrode": e.index, "utime": t, "seq": e.hall_seq, "raw_code": code,
-                                   "depth_um": depth})
+            exp["MD_HALL"].append({"electrode": e.index, "utime": t_clock, "seq": e.hall_seq, "raw_code": code,
+                                   "sample_time_ms": t // 1000, "depth_um": depth})
             e.hall_seq = (e.hall_seq + 1) % 256
 
 

@@ -5,7 +5,8 @@
 
 Proves, on short in-process sessions (3 cycles of single_neuron):
   * default: DIR/session.lcmlog exists, decodes with LCM's Python bindings and the lcm-gen -p types
-    (one MD_STATUS per cycle, MD_TRACKS/MD_HYPOTHESES/MD_SPIKES per cycle, ground truth), is byte-identical
+    (one MD_STATUS per cycle, MD_TRACKS/MD_HYPOTHESES/MD_SPIKES per cycle, ground truth, every HALL_READING
+    of candump.log in MD_HALL, at least 10 per message), is byte-identical
     on a rerun of the same seed, and the five PNGs exist with their session label;
   * --no-plots: the log but no PNG; --no-lcm: neither, and a message saying why there are no plots;
   * a failing bridge or plotter: exit 5 and a message naming the step, report.json still written;
@@ -41,7 +42,8 @@ def decode(a, path):
     import microdrive  # noqa: E402  (lcm-gen -p output)
     types = {"MD_STATUS": microdrive.status_t, "MD_TRACKS": microdrive.tracks_t,
              "MD_HYPOTHESES": microdrive.hypotheses_t, "MD_SPIKES": microdrive.spikes_t,
-             "MD_TRUTH_STATE": microdrive.truth_state_t, "MD_TRUTH_SESSION": microdrive.truth_session_t}
+             "MD_TRUTH_STATE": microdrive.truth_state_t, "MD_TRUTH_SESSION": microdrive.truth_session_t,
+             "MD_HALL": microdrive.hall_t}
     got = {ch: [] for ch in types}
     for ev in lcm.EventLog(path, "r"):
         if ev.channel in types:
@@ -68,6 +70,7 @@ def check_default(a, fails):
         fails.append("MD_STATUS cycles out of order")
     if n["MD_TRUTH_SESSION"] != 1 or n["MD_TRUTH_STATE"] < CYCLES:
         fails.append("ground truth missing from the LCM log")
+    check_hall(got["MD_HALL"], os.path.join(out, "candump.log"), fails)
     for png in PNGS:
         if not os.path.exists(os.path.join(out, png)) or os.path.getsize(os.path.join(out, png)) < 10000:
             fails.append(f"default session: {png} missing or tiny")
@@ -75,6 +78,26 @@ def check_default(a, fails):
     rc, err = session(a, again)
     if rc != 0 or not filecmp.cmp(log, os.path.join(again, "session.lcmlog"), shallow=False):
         fails.append(f"rerun of the same seed: exit {rc}, LCM logs differ")
+
+
+def check_hall(msgs, candump, fails):
+    """Every HALL_READING of candump.log is in MD_HALL once, in order, with its fields, batched (the bridge
+    collects an electrode's readings between two SIM_CLOCK frames, docs/telemetry.md "Hall readings")."""
+    frames = []
+    for line in open(candump):
+        ident, _, data = line.split()[2].partition("#")
+        if ident == "300":
+            b = bytes.fromhex(data)
+            frames.append((b[0], b[1], int.from_bytes(b[2:4], "little"), int.from_bytes(b[4:8], "little")))
+    readings = [(m.electrode, m.seq[k], m.raw_code[k], m.sample_time_ms[k])
+                for m in msgs for k in range(m.num_readings)]
+    key = lambda r: r[0]  # noqa: E731  (order per electrode; electrodes interleave differently)
+    print(f"  MD_HALL: {len(readings)} readings in {len(msgs)} messages, candump.log {len(frames)} HALL_READING")
+    if not frames or sorted(readings, key=key) != sorted(frames, key=key):
+        fails.append(f"MD_HALL readings differ from candump.log's HALL_READING frames ({len(readings)} vs "
+                     f"{len(frames)})")
+    if len(msgs) * 10 > len(readings):
+        fails.append(f"MD_HALL: {len(msgs)} messages for {len(readings)} readings: not batched")
 
 
 def check_switches(a, fails):

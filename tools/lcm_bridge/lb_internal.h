@@ -51,6 +51,17 @@ typedef struct {
     double pub_mid, pub_half;
 } lb_calib_t;
 
+/// HALL_READING frames of one electrode at one bridge time, not yet published.
+typedef struct {
+    int16_t n;                          ///< readings held (0 = none pending)
+    int64_t utime;                      ///< the bridge time they share
+    bool calibrated;                    ///< depth_um from a complete calibration
+    uint8_t seq[LB_HALL_BATCH];
+    int32_t raw_code[LB_HALL_BATCH];
+    int64_t sample_time_ms[LB_HALL_BATCH];
+    double depth_um[LB_HALL_BATCH];
+} lb_hall_batch_t;
+
 /// Truth session and neuron records, published together.
 typedef struct {
     bool have_session;
@@ -85,6 +96,7 @@ struct lb {
     lb_stats_t stats;
     lb_group_t group[LB_MAX_ELECTRODES];
     lb_calib_t calib[LB_MAX_ELECTRODES];
+    lb_hall_batch_t hall[LB_MAX_ELECTRODES];
     lb_truth_session_t truth;
     lb_truth_batch_t batch;
 };

@@ -19,6 +19,8 @@
 #define LB_CALIB_BIT_MID (1u << 16)
 #define LB_CALIB_BIT_HALF (1u << 17)
 
+static void hall_publish(lb_t *st, size_t e);
+
 size_t lb_size(void) { return sizeof(lb_t); }
 
 int lb_init(lb_t *st, lb_time_mode_t mode, lb_sink_fn sink, void *sink_ctx)
@@ -264,6 +266,7 @@ void lb_flush(lb_t *st)
         if (st->group[e].open) {
             group_publish(st, &st->group[e]);
         }
+        hall_publish(st, e);
     }
     lb_truth_flush(st);
 }
@@ -459,6 +462,34 @@ static double calib_depth(const lb_calib_t *c, double code)
     return acc;
 }
 
+_Static_assert(LB_HALL_BATCH == MICRODRIVE_HALL_T_MAX_READINGS, "batch size is the LCM constant");
+
+/// Publishes electrode e's pending Hall readings as one hall_t (nothing if none).
+static void hall_publish(lb_t *st, size_t e)
+{
+    lb_hall_batch_t *b = &st->hall[e];
+    if (b->n == 0) {
+        return;
+    }
+    const microdrive_hall_t m = {.utime = b->utime, .electrode = (int8_t)e, .calibrated = b->calibrated,
+                                 .num_readings = b->n, .seq = b->seq, .raw_code = b->raw_code,
+                                 .sample_time_ms = b->sample_time_ms, .depth_um = b->depth_um};
+    LB_PUBLISH(st, LB_CH_HALL, microdrive_hall_t, &m);
+    b->n = 0;
+}
+
+/// Publishes the Hall batches whose time the bridge's clock has left, so that
+/// nothing stamped later goes out before them.
+static void hall_publish_due(lb_t *st)
+{
+    const int64_t now = lb_now_us(st);
+    for (size_t e = 0u; e < LB_MAX_ELECTRODES; ++e) {
+        if (st->hall[e].n > 0 && st->hall[e].utime != now) {
+            hall_publish(st, e);
+        }
+    }
+}
+
 static void on_hall_reading(lb_t *st, const md_frame_t *f)
 {
     struct md_can_hall_reading_t r;
@@ -466,14 +497,26 @@ static void on_hall_reading(lb_t *st, const md_frame_t *f)
         st->stats.malformed++;
         return;
     }
-    st->stats.telemetry++;
-    microdrive_hall_t m = {.utime = lb_now_us(st), .electrode = (int8_t)r.electrode, .seq = r.seq,
-                           .raw_code = r.raw_code, .sample_time_ms = r.sample_time_ms};
-    if (r.electrode < LB_MAX_ELECTRODES && st->calib[r.electrode].valid) {
-        m.calibrated = 1;
-        m.depth_um = calib_depth(&st->calib[r.electrode], (double)r.raw_code);
+    if (r.electrode >= LB_MAX_ELECTRODES) {
+        st->stats.dropped++;
+        return;
     }
-    LB_PUBLISH(st, LB_CH_HALL, microdrive_hall_t, &m);
+    st->stats.telemetry++;
+    const lb_calib_t *c = &st->calib[r.electrode];
+    lb_hall_batch_t *b = &st->hall[r.electrode];
+    const int64_t now = lb_now_us(st);
+    if (b->n > 0 && b->utime != now) {
+        hall_publish(st, r.electrode);
+    }
+    b->utime = now;
+    b->calibrated = c->valid;
+    b->seq[b->n] = r.seq;
+    b->raw_code[b->n] = r.raw_code;
+    b->sample_time_ms[b->n] = r.sample_time_ms;
+    b->depth_um[b->n] = c->valid ? calib_depth(c, (double)r.raw_code) : 0.0;
+    if (++b->n >= (int16_t)LB_HALL_BATCH) {
+        hall_publish(st, r.electrode);
+    }
 }
 
 /// Publishes the collected set if it is complete and differs from the last one.
@@ -494,6 +537,7 @@ static void calib_maybe_publish(lb_t *st, lb_calib_t *c, uint8_t electrode)
         memcmp(&mid, &c->pub_mid, sizeof mid) == 0 && memcmp(&half, &c->pub_half, sizeof half) == 0) {
         return;
     }
+    hall_publish(st, electrode); /* its readings so far were converted with the old set (or none) */
     c->valid = true;
     c->pub_count = c->count;
     memcpy(c->pub_coeff, coeff, sizeof coeff);
@@ -547,12 +591,16 @@ static void on_sim_clock(lb_t *st, const md_frame_t *f)
     }
     st->stats.telemetry++;
     st->sim_time_us = (r.sim_time_us > (uint64_t)INT64_MAX) ? INT64_MAX : (int64_t)r.sim_time_us;
+    hall_publish_due(st);
 }
 
 void lb_feed_frame(lb_t *st, const md_frame_t *frame, int64_t frame_time_us)
 {
     st->stats.frames++;
     st->frame_time_us = frame_time_us;
+    if (st->mode == LB_TIME_FRAME) {
+        hall_publish_due(st);
+    }
     if ((frame->flags & MD_FRAME_FLAG_EXT) != 0u) {
         st->stats.ignored++;
         return;

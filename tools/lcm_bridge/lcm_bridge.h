@@ -24,7 +24,7 @@
 #define LB_CH_HYPOTHESES "MD_HYPOTHESES"       ///< microdrive.hypotheses_t
 #define LB_CH_SPIKES "MD_SPIKES"               ///< microdrive.spikes_t
 #define LB_CH_ACTUATOR "MD_ACTUATOR"           ///< microdrive.actuator_t
-#define LB_CH_HALL "MD_HALL"                   ///< microdrive.hall_t
+#define LB_CH_HALL "MD_HALL"                   ///< microdrive.hall_t (readings batched)
 #define LB_CH_HALL_CALIB "MD_HALL_CALIB"       ///< microdrive.hall_calib_t
 #define LB_CH_TRUTH_SESSION "MD_TRUTH_SESSION" ///< microdrive.truth_session_t
 #define LB_CH_TRUTH_STATE "MD_TRUTH_STATE"     ///< microdrive.truth_state_t
@@ -43,6 +43,7 @@
 #define LB_MAX_CALIB_COEFFS 16u    ///< HALL_CALIB CoeffIndex 0..15
 #define LB_TRUTH_MAX_NEURONS 256u  ///< neurons of a truth session / state record
 #define LB_TRUTH_SPIKE_BATCH 256u  ///< = truth_spikes_t.MAX_SPIKES
+#define LB_HALL_BATCH 100u         ///< = hall_t.MAX_READINGS
 
 /// Which clock stamps utime (docs/telemetry.md, "Time").
 typedef enum {
@@ -80,14 +81,18 @@ int lb_init(lb_t *st, lb_time_mode_t mode, lb_sink_fn sink, void *sink_ctx);
 
 /// Feeds one frame seen at frame_time_us (used in LB_TIME_FRAME mode only).
 /// Publishes what the frame completes; updates the sim clock on SIM_CLOCK.
-/// O(1) except at a group flush, O(tracks × wave + spikes).
+/// HALL_READING frames are collected per electrode into one hall_t while the
+/// clock (lb_now_us) stays the same, up to LB_HALL_BATCH readings; a batch
+/// goes out when the clock moves on, when it is full, before a new
+/// calibration of its electrode is published, and at lb_flush.
+/// O(LB_MAX_ELECTRODES) except at a group flush, O(tracks × wave + spikes).
 void lb_feed_frame(lb_t *st, const md_frame_t *frame, int64_t frame_time_us);
 
 /// The time that stamps the next message (µs): sim clock or last frame time.
 int64_t lb_now_us(const lb_t *st);
 
-/// Publishes every open cycle group (end of input) and the pending truth
-/// batches. Idempotent.
+/// Publishes every open cycle group (end of input), the pending Hall batches
+/// and the pending truth batches. Idempotent.
 void lb_flush(lb_t *st);
 
 /// Ground truth: the time (µs) a truth JSON line stands for, without

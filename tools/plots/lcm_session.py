@@ -12,6 +12,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import types
 
 import lcm
 
@@ -67,3 +68,14 @@ def read_log(path, types_dir=None):
             continue
         out[ev.channel].append(cls.decode(ev.data))
     return out
+
+
+HALL_FIELDS = ("seq", "raw_code", "sample_time_ms", "depth_um")
+
+
+def hall_readings(msgs):
+    """MD_HALL messages (each a batch of one electrode's readings at one utime) as one object per reading, in log
+    order, with the fields utime, electrode, calibrated, seq, raw_code, sample_time_ms, depth_um."""
+    return [types.SimpleNamespace(utime=m.utime, electrode=m.electrode, calibrated=m.calibrated,
+                                  **{f: getattr(m, f)[k] for f in HALL_FIELDS})
+            for m in msgs for k in range(m.num_readings)]

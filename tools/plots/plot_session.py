@@ -24,7 +24,7 @@ try:
     import numpy as np  # noqa: E402
 
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    from lcm_session import SFSM_STATES, read_log  # noqa: E402
+    from lcm_session import SFSM_STATES, hall_readings, read_log  # noqa: E402
 except ImportError as e:
     sys.exit(f"plot_session.py: the Python module {e.name!r} is missing from {sys.executable}; the project venv "
              f"has it: run scripts/setup-venv.sh in the checkout (microdrive-session uses its .venv)")
@@ -286,7 +286,7 @@ def plot_status(s, out, els, label=""):
         iqm.set_ylabel("IQM", color="C2")
         ax[1, c].legend(loc="upper left", fontsize=7)
         iqm.legend(loc="lower right", fontsize=7)
-        hall = series([m for m in s["MD_HALL"] if m.calibrated], e, "depth_um")
+        hall = series([r for r in hall_readings(s["MD_HALL"]) if r.calibrated], e, "depth_um")
         tip = series(s["MD_TRUTH_STATE"], e, "tip_um")
         ax[2, c].plot(hall[:, 0], hall[:, 1], "-", color="0.7", lw=2.5, label="Hall depth")
         ax[2, c].plot(st[:, 0], st[:, 4], "o-", ms=3, color="C0", label="depth (controller)")
