@@ -20,7 +20,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_config.h"
 
 #define EM_D_MAX MD_FEAT_DIM_MAX                         ///< feature dimension d, 1..3

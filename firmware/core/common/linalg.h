@@ -12,7 +12,7 @@
 
 #include <stddef.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 
 #define LINALG_MAX_N 64u   ///< largest matrix order any caller uses (Laplace Hessian, waveform space)
 
