@@ -62,7 +62,7 @@ double em_outlier_logpdf(const em_outlier_t *outlier, const double *y)
     double work[EM_D_MAX];
     double m2 = 0.0;
     if (linalg_mahalanobis2(outlier->chol, outlier->d, y, zero, work, &m2) != MD_OK) {
-        return NAN; /* not a density: the caller's finiteness check fails the fit */
+        return (double)NAN; /* not a density: the caller's finiteness check fails the fit */
     }
     /* Remark 3.2: f0 = ½ (N(0, KΞ) + 1/V) */
     return log(0.5) + em_logaddexp(outlier->log_norm - 0.5 * m2, -outlier->log_volume);
@@ -160,7 +160,7 @@ double em_prior_log_mean(const em_prior_t *prior, const double *mu, double *zeta
             if (zeta != NULL) {
                 memset(zeta, 0, (prior->n_targets + 1u) * sizeof(double));
             }
-            return NAN; /* a prior not prepared by em_prior_init: the caller's isfinite check fails the fit */
+            return (double)NAN; /* a prior not prepared by em_prior_init: the caller's isfinite check fails the fit */
         }
         /* eq. 3.8, j-th Gaussian term. A finite mean and target so far apart that
          * the distance overflows (m2 = +inf) have a density of 0 under this

@@ -82,7 +82,7 @@ md_status_t linalg_cholesky(double *a, size_t n)
 double linalg_cholesky_logdet(const double *l, size_t n)
 {
     if ((l == NULL) || !linalg_size_ok(n)) {
-        return NAN;
+        return (double)NAN;
     }
     double s = 0.0;
     for (size_t i = 0u; i < n; ++i) {
@@ -175,7 +175,7 @@ md_status_t linalg_mahalanobis2(const double *l, size_t n, const double *x, cons
                                 double *d2)
 {
     if (d2 != NULL) {
-        *d2 = NAN;
+        *d2 = (double)NAN;
     }
     if ((l == NULL) || (x == NULL) || (m == NULL) || (work == NULL) || (d2 == NULL) || !linalg_size_ok(n)) {
         return MD_E_ARG;
@@ -201,7 +201,7 @@ md_status_t linalg_mahalanobis2(const double *l, size_t n, const double *x, cons
     if (!linalg_all_finite(x, n) || !linalg_all_finite(m, n) || !linalg_factor_ok(l, n)) {
         return MD_E_NUMERIC;
     }
-    *d2 = INFINITY;
+    *d2 = HUGE_VAL;
     return MD_OK;
 }
 
