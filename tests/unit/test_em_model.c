@@ -57,7 +57,7 @@ static void test_mean_prior_and_zeta(void)
 }
 
 /* A density evaluated on a model em_*_init() did not prepare (order 0) is NaN,
- * which fails the fit; it used to be a distance of 0, i.e. a perfect match. */
+ * which fails the fit, never a distance of 0 (a perfect match). */
 static void test_unprepared_model_is_not_a_match(void)
 {
     em_outlier_t o;

@@ -119,8 +119,8 @@ static void test_non_pd_is_reported(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_cholesky(a, LINALG_MAX_N + 1u));
 }
 
-/* A bad argument is an error, never a distance: the old contract returned 0,
- * a perfect match, for a NULL pointer or an order outside 1..LINALG_MAX_N. */
+/* A bad argument (a NULL pointer, an order outside 1..LINALG_MAX_N) is an
+ * error, never a distance, least of all 0: a perfect match. */
 static void test_mahalanobis_reports_bad_arguments(void)
 {
     const double l[4] = {2.0, 0.0, 1.0, 3.0};
