@@ -8,8 +8,8 @@ Fails if any run violates an invariant, leaves no log, shows no trace of its fau
 whose counter microdrive-session prints stayed at zero: the hook is not wired), or, after a
 controller_restart, the controller does not resume its cycles, EXCEPT the
 violations listed in KNOWN_OPEN below: findings of the campaign in units this test does not own
-(docs/fault-campaign.md, "Open findings"; tools/safety/campaign_findings.md), tolerated by
-(kind, invariant) exactly like the fuzz harness switches, so that every other invariant keeps
+(docs/fault-campaign.md, "Open"; tools/safety/campaign_findings.md), tolerated by
+(kind, invariant) exactly, so that every other invariant keeps
 guarding. A known-open entry that does not occur is printed as a NOTE (fixed? remove it) but
 does not fail the test: the fix belongs to a unit this test does not own.
 ~1-2 s per run on the shared 2-core VM: 15 runs well under a minute.
