@@ -24,7 +24,7 @@
 
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_cycle.h"
 #include "md_frame.h"
 #include "md_node.h"

@@ -51,7 +51,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 
 #define MD_SERVO_CAL_MAX 16u          ///< calibration coefficients (degree <= 15)
 #define MD_SERVO_AVG_MAX 16u          ///< Hall readings kept for averaging

@@ -9,7 +9,7 @@
 
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_cycle.h"
 #include "md_node.h"
 

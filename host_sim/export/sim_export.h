@@ -1,6 +1,6 @@
 /// @file sim_export.h
 /// Export a simulated recording in the binary convention of Kilosort, Phy and
-/// SpikeInterface (issue item 8).
+/// SpikeInterface.
 ///
 /// In export mode no firmware drives the electrodes: the simulator moves every
 /// electrode along the scenario's scripted trajectory — record

@@ -1,6 +1,6 @@
 /// @file electrode.h
 /// One simulated electrode: its piezo actuator, Hall sensor, the tissue and
-/// neurons around its track, and the recorded signal (issue items 1-6).
+/// neurons around its track, and the recorded signal.
 ///
 /// Time is counted in samples of the electrode's ADC (`cursor`). The slow
 /// models (actuator, tissue, neuron geometry, damage, waveform templates) are

@@ -19,7 +19,7 @@
 
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "model/sim_rng.h"
 
 #define HALL_CAL_MAX_DEGREE 11u

@@ -32,7 +32,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "model/sim_rng.h"
 
 #define SIM_WAVE_MAX 128u   ///< samples of one rendered spike window, at most

@@ -17,7 +17,7 @@
 
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "model/sim_rng.h"
 
 #define SIM_SHORT_WAVE_MAX 96u  ///< MUA / artifact template samples, at most

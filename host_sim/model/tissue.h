@@ -16,7 +16,7 @@
 #ifndef SIM_TISSUE_H
 #define SIM_TISSUE_H
 
-#include "common/md_status.h"
+#include "md_status.h"
 
 typedef struct {
     double drift_um_per_min;   ///< default 0.3 um/min

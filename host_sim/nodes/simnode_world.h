@@ -16,7 +16,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "scenario/scenario.h"
 
 /// Most polynomial coefficients of a Hall calibration.

@@ -69,15 +69,10 @@ static shadow_t g_shadow;
 
 #define ALL_ELECTRODES ((uint8_t)((1u << MD_ELECTRODES) - 1u))
 
-/* Open finding (docs/fuzzing.md, reproducers in crashes/fuzz_node/): an NMT
- * start that arrives after init/reset-node but before the first poll makes
- * the node operational; the poll's boot-up then sets pre-operational without
- * halting (md_node.c do_boot). Tolerated while 1 so the runs go on; set to 0
- * once do_boot halts (or NMT is refused before boot-up). */
-#ifndef FUZZ_NODE_BOOT_BUG_OPEN
-#define FUZZ_NODE_BOOT_BUG_OPEN 0 /* fixed: md_node refuses state commands before boot-up */
-#endif
-
+/* The reproducers in crashes/fuzz_node/ (docs/fuzzing.md, "Findings") send an
+ * NMT start after init/reset-node but before the first poll: the node must
+ * refuse it, or the boot-up would leave operational without halting, which the
+ * halt check below catches. */
 static void check_sent_frame(const md_frame_t *f)
 {
     FUZZ_CHECK(md_frame_valid(f));
@@ -329,7 +324,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         const md_node_counters_t before = node.counters;
         const bool was_operational = node.state == MD_NODE_STATE_OPERATIONAL;
         const uint32_t lost_before = node.counters.heartbeat_lost;
-        const bool boot_before = node.boot_pending;
         g_shadow.halts_sent_mask = 0u;
         const uint8_t op = fz_u8(&in);
         switch (op & 7u) {
@@ -363,8 +357,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         }
         check_counters(&before, &node.counters);
-        const bool known_boot_bug = FUZZ_NODE_BOOT_BUG_OPEN != 0 && boot_before && !node.boot_pending;
-        if ((was_operational && node.state != MD_NODE_STATE_OPERATIONAL && !known_boot_bug) ||
+        if ((was_operational && node.state != MD_NODE_STATE_OPERATIONAL) ||
             node.counters.heartbeat_lost != lost_before) {
             /* Leaving operational or losing a node halts every electrode (sent or queued). */
             FUZZ_CHECK((uint8_t)(g_shadow.halts_sent_mask | node.halt_pending) == ALL_ELECTRODES);

@@ -16,10 +16,10 @@
 ///    succeed, the same eigenvalues and total variance (relative 1e-9);
 ///    pca_project_all_i16 obeys the projection rule above.
 ///
-/// Fixed finding (docs/fuzzing.md, reproducer in crashes/fuzz_pca/): with
-/// values near 1e154 the covariance trace overflowed to +inf and pca_fit
-/// returned MD_OK with total_var = inf. FUZZ_PCA_TRACE_BUG_OPEN = 1 would
-/// tolerate exactly that symptom again; at 0 the reproducer guards the fix.
+/// The reproducers in crashes/fuzz_pca/ (docs/fuzzing.md, "Findings") guard a
+/// covariance trace that overflows (values near 1e154: MD_E_NUMERIC, never
+/// MD_OK with total_var = inf) and identical waveforms (MD_E_DEGENERATE, never
+/// a basis of rounding noise); every check above applies to them.
 #include <stdint.h>
 #include <string.h>
 
@@ -28,18 +28,6 @@
 
 #define FZ_PCA_N_MAX 256u
 #define FZ_PCA_STRIDE_MAX (MD_WAVE_LEN_MAX + 4u)
-
-#ifndef FUZZ_PCA_TRACE_BUG_OPEN
-#define FUZZ_PCA_TRACE_BUG_OPEN 0 /* fixed: pca.c reports a non-finite trace as MD_E_NUMERIC */
-#endif
-
-/* Fixed finding (docs/fuzzing.md, crashes/fuzz_pca/identical_waveforms_*):
- * identical waveforms gave MD_OK with a trace made of rounding error instead
- * of MD_E_DEGENERATE (pca.h PCA_DEGENERATE_REL now). Tolerated while 1: a
- * success whose trace is below (1e-12 · max|x|)^2 · d_w is not checked. */
-#ifndef FUZZ_PCA_DEGENERATE_BUG_OPEN
-#define FUZZ_PCA_DEGENERATE_BUG_OPEN 0 /* fixed: PCA_DEGENERATE_REL rounding floor */
-#endif
 
 static double g_wave[FZ_PCA_N_MAX * FZ_PCA_STRIDE_MAX];
 static int16_t g_wave16[FZ_PCA_N_MAX * FZ_PCA_STRIDE_MAX];
@@ -184,25 +172,6 @@ static bool close_rel(double a, double b)
     return fabs(a - b) <= 1e-9 * fmax(fabs(a), fabs(b)) + 1e-300;
 }
 
-static size_t g_n, g_stride; /* the waveform set of the current input, for known_trace_bug */
-
-/* Known open bugs tolerated (see above): MD_OK with a non-finite trace, or
- * with a trace below the rounding floor of the data. */
-static bool known_trace_bug(const pca_basis_t *b)
-{
-    if (FUZZ_PCA_TRACE_BUG_OPEN != 0 && !isfinite(b->total_var)) {
-        return true;
-    }
-    double big = 0.0;
-    for (size_t i = 0u; i < g_n; ++i) {
-        for (size_t j = 0u; j < b->d_w; ++j) {
-            big = fmax(big, fabs(g_wave[i * g_stride + j]));
-        }
-    }
-    const double floor_var = (1e-12 * big) * (1e-12 * big) * (double)b->d_w;
-    return FUZZ_PCA_DEGENERATE_BUG_OPEN != 0 && b->total_var <= floor_var;
-}
-
 static void check_projection(const pca_basis_t *b, size_t n, size_t stride, bool i16, double gain)
 {
     const md_status_t pst = i16 ? pca_project_all_i16(b, g_wave16, n, stride, gain, g_feat)
@@ -223,12 +192,6 @@ static void run_i16(size_t n, size_t stride, size_t d_w, size_t d, double gain, 
         return;
     }
     const md_status_t st = pca_fit(g_wave, n, stride, d_w, d, &g_work, &g_basis);
-    if (st16 == MD_OK && known_trace_bug(&g_basis16)) {
-        return;
-    }
-    if (st == MD_OK && known_trace_bug(&g_basis)) {
-        return;
-    }
     if (!finite) {
         /* gain * count overflowed: there are no "converted rows" to compare
          * with, but a success would have to come from an overflowed covariance. */
@@ -269,8 +232,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         n++;
     }
-    g_n = n;
-    g_stride = row;
     bool finite = true;
     for (size_t i = 0u; i < n; ++i) {
         finite = finite && fz_all_finite(&g_wave[i * row], d_w);
@@ -282,7 +243,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     const md_status_t st = pca_fit(g_wave, n, stride, d_w, d, &g_work, &g_basis);
     FUZZ_CHECK(st == MD_OK || st == MD_E_ARG || st == MD_E_DEGENERATE || st == MD_E_NUMERIC ||
                st == MD_E_NOCONVERGE);
-    if (st != MD_OK || known_trace_bug(&g_basis)) {
+    if (st != MD_OK) {
         return 0;
     }
     FUZZ_CHECK(finite);

@@ -8,10 +8,10 @@ Fails if any run violates an invariant, leaves no log, shows no trace of its fau
 whose counter microdrive-session prints stayed at zero: the hook is not wired), or, after a
 controller_restart, the controller does not resume its cycles, EXCEPT the
 violations listed in KNOWN_OPEN below: findings of the campaign in units this test does not own
-(docs/fault-campaign.md, "Open findings"; tools/safety/campaign_findings.md), tolerated by
-(kind, invariant) exactly like the fuzz harness switches, so that every other invariant keeps
-guarding. A known-open entry that no longer occurs is printed as a NOTE (fixed? remove it) but
-does not fail the test: the fixes land in another engineer's files while this list is here.
+(docs/fault-campaign.md, "Open"; tools/safety/campaign_findings.md), tolerated by
+(kind, invariant) exactly, so that every other invariant keeps
+guarding. A known-open entry that does not occur is printed as a NOTE (fixed? remove it) but
+does not fail the test: the fix belongs to a unit this test does not own.
 ~1-2 s per run on the shared 2-core VM: 15 runs well under a minute.
 """
 import argparse
@@ -24,9 +24,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 CAMPAIGN = os.path.join(ROOT, "tools", "safety", "campaign.py")
 
-# (kind, invariant) -> violations tolerated per run. Empty: the actuator_slip excursion this
-# list used to tolerate (one gross first move) is gone since md_servo probes every move with a
-# few steps before larger chunks (MD_SERVO_PROBE_STEPS); kept for findings in other units.
+# (kind, invariant) -> violations tolerated per run, for open findings in units this test does
+# not own. Empty: every run must hold every invariant.
 KNOWN_OPEN = {}
 # after a controller_restart the controller must come back and run cycles again: status frames
 # with a measured depth after its last boot (check_invariants.py counts them)

@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
 """A crafted telemetry session for the LCM tests (docs/telemetry.md, "Tests").
 
-Until the controller sends its TLM_* frames, the bridge, the LCM log and the
-plots are tested on this synthetic session: every frame is encoded with
-cantools from common/protocol/microdrive.dbc (not with the project's C packing
-code), written as a candump -L log, together with a ground-truth JSON-lines
-file in the simulator's format (docs/simulator.md section 6).
+Besides the real sessions of test_lcm_session, the bridge, the LCM log and the
+plots are tested on this synthetic session, whose every value is known: every
+frame is encoded with cantools from common/protocol/microdrive.dbc (not with
+the project's C packing code), written as a candump -L log, together with a
+ground-truth JSON-lines file in the simulator's format (docs/simulator.md
+section 6).
 
     test_lcm_fixture.py --dbc DBC --out DIR [--cycles N] [--seed S]
 

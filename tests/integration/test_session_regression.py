@@ -26,13 +26,12 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "tools", "session"))
 import evaluate  # noqa: E402  (tools/session/evaluate.py: run_one, summarise)
 
-# Bounds. The full sweeps (docs/session.md, commit 11422e8) measured, for
-# single_neuron over 20 seeds, isolation 100 %, zero damage and a median final
-# distance of 9.9 um; empty_tissue never isolated. Seeds 1-3 here measured
-# 1.9 / 22.5 / 10.4 um (median 10.4); on earlier commits 8.9 / 3.6 / 8.8 and
-# 13.0 / 13.0 / 19.0: three seeds' median moves by several um with any change
-# of the tracker or the servo, so the distance bound is the acceptance target
-# itself (15 um). It catches the old failure modes (isolation on noise:
+# Bounds. The full sweeps (docs/session.md, "Evaluation over seeds") measure,
+# for single_neuron over 20 seeds, isolation 100 % and zero damage; empty_tissue
+# never isolates. The median final distance of three seeds moves by several um
+# with any change of the tracker or the servo (docs/session.md lists the
+# per-seed distances), so the distance bound is the acceptance target itself
+# (15 um). It catches the failure modes that matter (isolation on noise:
 # 150-200 um; staying put while the tissue relaxes: 30-60 um).
 SINGLE_SEEDS = (1, 2, 3)
 SINGLE_DURATION_S = None  # the scenario's duration_s

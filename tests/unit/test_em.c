@@ -195,11 +195,10 @@ static void test_degenerate_and_bad_inputs(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_fit(&s.data, &s.outlier, &s.prior, seed, 1u, &opt, z, &fit));
 }
 
-/* docs/fuzzing.md finding 4: a finite target mean near -DBL_MAX made the
- * Mahalanobis distance inf - inf = NaN inside the triangular solve, the prior
- * term NaN, and a failed fit kept that NaN in log_post. The far target now has
- * density 0 (ζ = 0), and a failed fit carries no NaN (log_lik = log_post = 0,
- * n_soft = 0). */
+/* docs/fuzzing.md finding 4: a finite target mean near -DBL_MAX puts the
+ * Mahalanobis distance beyond the double range (inf - inf inside the
+ * triangular solve). The far target has density 0 (ζ = 0), and a failed fit
+ * carries no NaN (log_lik = log_post = 0, n_soft = 0). */
 static void test_far_target_and_failed_fit_leave_no_nan(void)
 {
     setup_t s;

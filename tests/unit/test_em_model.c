@@ -56,6 +56,32 @@ static void test_mean_prior_and_zeta(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, em_prior_init(2u, t, 2u, 0.025, 50.0, &p));
 }
 
+/* A density evaluated on a model em_*_init() did not prepare (order 0) is NaN,
+ * which fails the fit, never a distance of 0 (a perfect match). */
+static void test_unprepared_model_is_not_a_match(void)
+{
+    em_outlier_t o;
+    memset(&o, 0, sizeof o);
+    const double y[2] = {1.0, -0.5};
+    TEST_ASSERT_TRUE(isnan(em_outlier_logpdf(&o, y)));
+    const double xi[4] = {0.5, 0.1, 0.1, 0.25};
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_outlier_init(2u, xi, 80.0, &o));
+    const double nan_y[2] = {NAN, 0.0};
+    TEST_ASSERT_TRUE(isnan(em_outlier_logpdf(&o, nan_y)));
+    em_prior_t p;
+    em_target_t t;
+    memset(&t, 0, sizeof t);
+    t.s_cov[0] = t.s_cov[3] = 1.0;
+    t.p_detect = 0.9;
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_prior_init(2u, &t, 1u, 0.025, 50.0, &p));
+    double zeta[EM_J_MAX + 1u];
+    const double mu[2] = {0.0, 0.0};
+    TEST_ASSERT_TRUE(isfinite(em_prior_log_mean(&p, mu, zeta)));
+    memset(p.s_chol[0], 0, sizeof p.s_chol[0]); /* not a Cholesky factor */
+    TEST_ASSERT_TRUE(isnan(em_prior_log_mean(&p, mu, zeta)));
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, zeta[0] + zeta[1]);
+}
+
 static void test_volume_and_sort(void)
 {
     const double y[6] = {0.0, 1.0, 2.0, -1.0, 1.0, 3.0};
@@ -106,6 +132,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_outlier_density);
     RUN_TEST(test_mean_prior_and_zeta);
+    RUN_TEST(test_unprepared_model_is_not_a_match);
     RUN_TEST(test_volume_and_sort);
     RUN_TEST(test_outlier_table);
     return UNITY_END();

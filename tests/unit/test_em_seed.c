@@ -143,6 +143,21 @@ static void test_degenerate_seeds(void)
     TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, em_seed_from_targets(&d, &bad, 1u, 1u, &ws, lab));
 }
 
+/* A point with no distance to the prior clusters is reported, not assigned to
+ * the first of them; both the subset search (g < J) and the assignment. */
+static void test_nonfinite_point_is_reported(void)
+{
+    const size_t n = blobs(c3, 3u, 10u, 3u);
+    em_target_t tg[3];
+    target(&tg[0], -4.0, 0.0);
+    target(&tg[1], 4.0, 0.0);
+    target(&tg[2], 0.0, 6.0);
+    pts[2u * 7u + 1u] = NAN;
+    const em_data_t d = {pts, n, 2u};
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, em_seed_from_targets(&d, tg, 3u, 3u, &ws, lab));
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, em_seed_from_targets(&d, tg, 3u, 2u, &ws, lab));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -151,5 +166,6 @@ int main(void)
     RUN_TEST(test_more_splits_widest_at_largest_gap);
     RUN_TEST(test_more_splits_the_widest_group);
     RUN_TEST(test_degenerate_seeds);
+    RUN_TEST(test_nonfinite_point_is_reported);
     return UNITY_END();
 }

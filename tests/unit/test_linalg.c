@@ -1,4 +1,5 @@
 /* Unit: linalg — known-answer tests for the shared dense linear algebra. */
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -62,7 +63,7 @@ static void test_solve_and_mahalanobis(void)
     const double x_true[4] = {1.0, -1.0, 2.0, 0.5};
     double b[4];
     linalg_matmul(a, x_true, b, 4, 4, 1);
-    linalg_cholesky_solve(l, 4, b);
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_cholesky_solve(l, 4, b));
     for (int i = 0; i < 4; ++i) {
         TEST_ASSERT_DOUBLE_WITHIN(1e-12, x_true[i], b[i]);
     }
@@ -72,7 +73,9 @@ static void test_solve_and_mahalanobis(void)
         for (int i = 0; i < 4; ++i) {
             x[i] = q[i * 4 + k];
         }
-        TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1.0 / lam[k], linalg_mahalanobis2(l, 4, x, zero, work));
+        double d2 = -1.0;
+        TEST_ASSERT_EQUAL_INT(MD_OK, linalg_mahalanobis2(l, 4, x, zero, work, &d2));
+        TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1.0 / lam[k], d2);
     }
     /* logdet = sum log lam */
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, log(5.0 * 2.0 * 1.0 * 0.25), linalg_cholesky_logdet(l, 4));
@@ -114,6 +117,101 @@ static void test_non_pd_is_reported(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_cholesky(a, 0));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_cholesky(NULL, 2));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_cholesky(a, LINALG_MAX_N + 1u));
+}
+
+/* A bad argument (a NULL pointer, an order outside 1..LINALG_MAX_N) is an
+ * error, never a distance, least of all 0: a perfect match. */
+static void test_mahalanobis_reports_bad_arguments(void)
+{
+    const double l[4] = {2.0, 0.0, 1.0, 3.0};
+    const double x[2] = {1.0, 2.0};
+    const double m[2] = {0.0, 0.0};
+    double work[2];
+    double d2 = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_mahalanobis2(NULL, 2, x, m, work, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    d2 = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_mahalanobis2(l, 2, NULL, m, work, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    d2 = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_mahalanobis2(l, 2, x, NULL, work, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    d2 = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_mahalanobis2(l, 2, x, m, NULL, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    d2 = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_mahalanobis2(l, 0, x, m, work, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    d2 = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_mahalanobis2(l, LINALG_MAX_N + 1u, x, m, work, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_mahalanobis2(l, 2, x, m, work, NULL));
+    /* the same arguments, valid: (1,2) under L = [[2,0],[1,3]]: y = (0.5, 0.5) */
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_mahalanobis2(l, 2, x, m, work, &d2));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-15, 0.5, d2);
+}
+
+/* Non-finite inputs and unusable factors are numeric failures; a distance
+ * beyond the double range between finite points is +inf, not NaN. */
+static void test_mahalanobis_nonfinite_and_overflow(void)
+{
+    const double l[4] = {0.5, 0.0, 0.4, 0.3};
+    const double m[2] = {0.0, 0.0};
+    double work[2];
+    double d2 = 0.0;
+    const double nan_x[2] = {NAN, 1.0};
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, linalg_mahalanobis2(l, 2, nan_x, m, work, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    const double inf_x[2] = {1.0, INFINITY};
+    d2 = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, linalg_mahalanobis2(l, 2, inf_x, m, work, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    const double x[2] = {1.0, 1.0};
+    const double zero_pivot[4] = {0.0, 0.0, 0.4, 0.3};
+    d2 = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, linalg_mahalanobis2(zero_pivot, 2, x, m, work, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    const double nan_factor[4] = {0.5, 0.0, NAN, 0.3};
+    d2 = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, linalg_mahalanobis2(nan_factor, 2, x, m, work, &d2));
+    TEST_ASSERT_TRUE(isnan(d2));
+    /* x - m overflows, and the forward solve then computes inf - inf */
+    const double far_x[2] = {DBL_MAX, DBL_MAX};
+    const double far_m[2] = {-DBL_MAX, -DBL_MAX};
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_mahalanobis2(l, 2, far_x, far_m, work, &d2));
+    TEST_ASSERT_TRUE(isinf(d2) && (d2 > 0.0));
+}
+
+/* The solve reports misuse and a non-finite solution instead of doing nothing. */
+static void test_solve_reports_failures(void)
+{
+    const double l[4] = {2.0, 0.0, 1.0, 3.0};
+    double b[2] = {4.0, 5.0};
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_cholesky_solve(NULL, 2, b));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_cholesky_solve(l, 2, NULL));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_cholesky_solve(l, 0, b));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_cholesky_solve(l, LINALG_MAX_N + 1u, b));
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 4.0, b[0]); /* untouched on MD_E_ARG */
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 5.0, b[1]);
+    const double zero_pivot[4] = {2.0, 0.0, 1.0, 0.0};
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, linalg_cholesky_solve(zero_pivot, 2, b));
+    double nan_b[2] = {NAN, 1.0};
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, linalg_cholesky_solve(l, 2, nan_b));
+    /* A = L L^T = [[4, 2], [2, 10]]; A (1, 1) = (6, 12) */
+    double ok_b[2] = {6.0, 12.0};
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_cholesky_solve(l, 2, ok_b));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-15, 1.0, ok_b[0]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-15, 1.0, ok_b[1]);
+}
+
+/* log det of a bad argument is NaN, not 0 (det = 1, a plausible value). */
+static void test_logdet_reports_bad_arguments(void)
+{
+    const double l[4] = {2.0, 0.0, 1.0, 3.0};
+    TEST_ASSERT_TRUE(isnan(linalg_cholesky_logdet(NULL, 2)));
+    TEST_ASSERT_TRUE(isnan(linalg_cholesky_logdet(l, 0)));
+    TEST_ASSERT_TRUE(isnan(linalg_cholesky_logdet(l, LINALG_MAX_N + 1u)));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-15, log(36.0), linalg_cholesky_logdet(l, 2));
 }
 
 static void test_jacobi_recovers_constructed_eigenpairs(void)
@@ -222,6 +320,10 @@ int main(void)
     RUN_TEST(test_solve_and_mahalanobis);
     RUN_TEST(test_spd_inverse_times_a_is_identity);
     RUN_TEST(test_non_pd_is_reported);
+    RUN_TEST(test_mahalanobis_reports_bad_arguments);
+    RUN_TEST(test_mahalanobis_nonfinite_and_overflow);
+    RUN_TEST(test_solve_reports_failures);
+    RUN_TEST(test_logdet_reports_bad_arguments);
     RUN_TEST(test_jacobi_recovers_constructed_eigenpairs);
     RUN_TEST(test_jacobi_larger_matrix_is_orthonormal_decomposition);
     RUN_TEST(test_jacobi_reports_noconverge_and_bad_input);

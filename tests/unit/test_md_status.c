@@ -1,5 +1,5 @@
 /* Unit: md_status — every code has a distinct, stable name. */
-#include "common/md_status.h"
+#include "md_status.h"
 #include "unity.h"
 
 void setUp(void) {}

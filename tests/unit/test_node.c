@@ -241,9 +241,9 @@ static void test_heartbeat_period_parameter_applies(void)
 }
 
 /* Regression (fuzz_node, tests/fuzz/crashes/fuzz_node): an NMT start that
- * arrives after init but before the first poll used to make the node
- * operational, let it step, and then be overwritten by the boot-up without a
- * halt. The initialising node now refuses state commands. */
+ * arrives after init but before the first poll must not make the node
+ * operational (it would step, then be overwritten by the boot-up without a
+ * halt): the initialising node refuses state commands. */
 static void test_nmt_start_before_bootup_is_refused(void)
 {
     const uint32_t refused = g_node.counters.nmt_refused;

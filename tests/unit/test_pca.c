@@ -134,8 +134,8 @@ static void test_degenerate_and_bad_input(void)
 }
 
 /* docs/fuzzing.md finding 2 (crashes/fuzz_pca/pca_trace_overflow_inf_total_var):
- * every covariance entry is finite (5e307) but their sum overflows; MD_OK
- * with total_var = inf and a wrong basis used to come out. */
+ * every covariance entry is finite (5e307) but their sum overflows: the fit
+ * must report it, not return MD_OK with total_var = inf and a wrong basis. */
 static void test_trace_overflow_is_numeric(void)
 {
     const size_t dw = 10u;
@@ -192,7 +192,7 @@ static void test_variance_below_normal_range_is_degenerate(void)
 
 /* docs/fuzzing.md finding 3 (crashes/fuzz_pca/identical_waveforms_ok_instead_of_degenerate):
  * 25 identical windows of 31354 counts x 0.195 uV (a saturated front-end):
- * the rounded mean leaves a trace of ~1e-23, which used to give MD_OK and a
+ * the rounded mean leaves a trace of ~1e-23, which must not give MD_OK and a
  * basis of rounding noise. One count of difference is real data again. */
 static void test_identical_windows_within_rounding_are_degenerate(void)
 {

@@ -74,6 +74,11 @@ static void test_isolation_distance_given_sigma(void)
     TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC,
                           qm_isolation_distance(y, 7u, 2u, labels, 2u, NULL, 0u, mu, bad, work, 16u, &iso));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, qm_isolation_distance(y, 7u, 2u, labels, 1u, noise, 1u, mu, cov, work, 7u, &iso));
+    /* a non-finite point has no distance: reported, not ranked */
+    const double nan_noise[2] = {NAN, 1.5};
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC,
+                          qm_isolation_distance(y, 7u, 2u, labels, 1u, nan_noise, 1u, mu, cov, work, 16u, &iso));
+    TEST_ASSERT_FALSE(iso.defined);
 }
 
 static void test_isolation_distance_estimated_and_undefined(void)

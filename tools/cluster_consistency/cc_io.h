@@ -9,7 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 
 /// Ground-truth spikes of one channel, ascending sample index.
 typedef struct {

@@ -181,7 +181,6 @@ def main():
     ap.add_argument("--map-evidence", default="laplace", choices=["laplace", "bic"],
                     help="evidence of the MAP method (thesis: laplace; bic is a diagnostic)")
     ap.add_argument("--update-doc", default=None)
-    ap.add_argument("--source-rev", default=None, help="source revision to print (default: git describe --dirty)")
     args = ap.parse_args()
     default_scenarios = ",".join(SCENARIOS)
     SCENARIOS[:] = [s for s in args.scenarios.split(",") if s]
@@ -212,15 +211,13 @@ def main():
                     results[(sc, sd, f)] = run_stats(rows_by_q[q_by_scen[sc][0] * f])
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
-    rev = args.source_rev or subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True,
-                                            text=True).stdout.strip()
-    text = f"Source: `{rev or 'unknown'}`. MAP evidence: {args.map_evidence}; ML: BIC.\n\n" + tables(results, q_by_scen, q_scales, f"{calib[0]}–{calib[-1]}" if len(calib) > 1 else str(calib[0]), seeds)
+    text = f"MAP evidence: {args.map_evidence}; ML: BIC.\n\n" + tables(results, q_by_scen, q_scales, f"{calib[0]}–{calib[-1]}" if len(calib) > 1 else str(calib[0]), seeds)
     print(text)
     if args.update_doc:
         cmd = (f"tools/cluster_consistency/run_experiment.py --build BUILD --seeds {args.seeds} "
                f"--calib-seeds {args.calib_seeds} --q-scales {args.q_scales} --map-evidence {args.map_evidence} "
                + ("" if args.scenarios == default_scenarios else f"--scenarios {args.scenarios} ") +
-               f"--update-doc docs/clustering-consistency.md` (BUILD: a Release host build of that revision, e.g. "
+               f"--update-doc docs/clustering-consistency.md` (BUILD: a Release host build, e.g. "
                f"`cmake --preset release && cmake --build build/release` gives build/release)")
         update_doc(args.update_doc, text, cmd)
 

@@ -36,7 +36,7 @@ import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(ROOT, "tools", "session"))
-import evaluate  # noqa: E402  (closed-loop engineer's summary of reports: reused, not copied)
+import evaluate  # noqa: E402  (tools/session/evaluate.py's summary of reports: reused, not copied)
 
 TRACKERS = {0: "MHTC", 1: "MAP-NN", 2: "ML-NN", 3: "GNN"}
 

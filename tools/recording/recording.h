@@ -54,7 +54,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 
 #define REC_MAX_INTERVALS 4096u   ///< intervals of one recording
 #define REC_MAX_CHANNELS 1024u    ///< channels of one recording

@@ -219,10 +219,9 @@ static md_status_t em_map_mean(const em_prior_t *prior, const double *sigma_inv,
             }
         }
     }
-    if (linalg_cholesky(a, d) != MD_OK) {
+    if ((linalg_cholesky(a, d) != MD_OK) || (linalg_cholesky_solve(a, d, b) != MD_OK)) {
         return MD_E_NUMERIC;
     }
-    linalg_cholesky_solve(a, d, b);
     memcpy(mean, b, d * sizeof(double));
     return MD_OK;
 }

@@ -60,7 +60,10 @@ double em_outlier_logpdf(const em_outlier_t *outlier, const double *y)
 {
     const double zero[EM_D_MAX] = {0.0};
     double work[EM_D_MAX];
-    const double m2 = linalg_mahalanobis2(outlier->chol, outlier->d, y, zero, work);
+    double m2 = 0.0;
+    if (linalg_mahalanobis2(outlier->chol, outlier->d, y, zero, work, &m2) != MD_OK) {
+        return (double)NAN; /* not a density: the caller's finiteness check fails the fit */
+    }
     /* Remark 3.2: f0 = ½ (N(0, KΞ) + 1/V) */
     return log(0.5) + em_logaddexp(outlier->log_norm - 0.5 * m2, -outlier->log_volume);
 }
@@ -77,6 +80,9 @@ md_status_t em_outlier_tabulate(em_outlier_t *outlier, const em_data_t *data)
     }
     for (size_t i = 0u; i < data->n; ++i) {
         outlier->tab_log_f0[i] = em_outlier_logpdf(outlier, &data->y[i * data->d]);
+        if (isnan(outlier->tab_log_f0[i]) != 0) {
+            return MD_E_NUMERIC;
+        }
     }
     outlier->tab_y = data->y;
     outlier->tab_n = data->n;
@@ -89,13 +95,6 @@ double em_outlier_logpdf_at(const em_outlier_t *outlier, const em_data_t *data, 
         return outlier->tab_log_f0[i];
     }
     return em_outlier_logpdf(outlier, &data->y[i * data->d]);
-}
-
-double em_log_gauss(const double *l, double logdet, size_t d, const double *y, const double *mu)
-{
-    double work[EM_D_MAX];
-    const double m2 = linalg_mahalanobis2(l, d, y, mu, work);
-    return -0.5 * ((double)d * EM_LOG_2PI + logdet + m2); /* eq. 3.1 */
 }
 
 static md_status_t em_prior_target(size_t d, const em_target_t *t, double log_w, em_prior_t *p,
@@ -156,11 +155,17 @@ double em_prior_log_mean(const em_prior_t *prior, const double *mu, double *zeta
     lw[0] = lse;
     for (size_t j = 0u; j < prior->n_targets; ++j) {
         double work[EM_D_MAX];
-        const double m2 = linalg_mahalanobis2(prior->s_chol[j], prior->d, mu, prior->mean[j], work);
+        double m2 = 0.0;
+        if (linalg_mahalanobis2(prior->s_chol[j], prior->d, mu, prior->mean[j], work, &m2) != MD_OK) {
+            if (zeta != NULL) {
+                memset(zeta, 0, (prior->n_targets + 1u) * sizeof(double));
+            }
+            return (double)NAN; /* a prior not prepared by em_prior_init: the caller's isfinite check fails the fit */
+        }
         /* eq. 3.8, j-th Gaussian term. A finite mean and target so far apart that
-         * the distance overflows (inf, or inf - inf = NaN in the solve) have a
-         * density of 0 under this term: weight -inf, never NaN. */
-        lw[j + 1u] = isfinite(m2) ? (prior->log_w_norm[j] - 0.5 * m2) : -HUGE_VAL;
+         * the distance overflows (m2 = +inf) have a density of 0 under this
+         * term: weight -inf, never NaN. */
+        lw[j + 1u] = prior->log_w_norm[j] - 0.5 * m2;
         lse = em_logaddexp(lse, lw[j + 1u]);
     }
     if (zeta != NULL) {

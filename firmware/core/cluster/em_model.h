@@ -20,7 +20,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_config.h"
 
 #define EM_D_MAX MD_FEAT_DIM_MAX                         ///< feature dimension d, 1..3
@@ -124,7 +124,8 @@ md_status_t em_bounding_volume(const em_data_t *data, double *volume);
 /// MD_E_NUMERIC if K·Ξ is not SPD. O(d^3).
 md_status_t em_outlier_init(size_t d, const double *noise_cov, double volume, em_outlier_t *out);
 
-/// log f0(y) of Remark 3.2, evaluated in the log domain.
+/// log f0(y) of Remark 3.2, evaluated in the log domain. NaN (never a density)
+/// for a non-finite y or an outlier not prepared by em_outlier_init().
 double em_outlier_logpdf(const em_outlier_t *outlier, const double *y);
 
 /// Tabulates log f0(y_i) for every point of `data` (f0 does not change during
@@ -132,7 +133,8 @@ double em_outlier_logpdf(const em_outlier_t *outlier, const double *y);
 /// per point and iteration). The table is used only for the same points array
 /// (pointer and n); it stays valid until em_outlier_init() or the next call,
 /// so the caller must re-tabulate if it changes the points in place.
-/// MD_E_ARG on bad input (the table is then cleared). O(n d^2).
+/// MD_E_ARG on bad input, MD_E_NUMERIC for a non-finite point (the table is
+/// then cleared). O(n d^2).
 md_status_t em_outlier_tabulate(em_outlier_t *outlier, const em_data_t *data);
 
 /// log f0(y_i) of point i of `data`: from the table when it was made for this
@@ -146,12 +148,10 @@ md_status_t em_prior_init(size_t d, const em_target_t *targets, size_t n_targets
                           double volume, em_prior_t *out);
 
 /// log p(μ) of eq. 3.8; when zeta is non-NULL it receives ζ_j, j = 0..J (eq. 3.14).
-/// Never NaN: a target whose Mahalanobis distance to μ overflows contributes
-/// weight 0; a non-finite μ gives -inf (and ζ = 0). O(J d^2).
+/// A target whose Mahalanobis distance to μ overflows contributes weight 0; a
+/// non-finite μ gives -inf (and ζ = 0). NaN (and ζ = 0) only for a prior not
+/// prepared by em_prior_init(). O(J d^2).
 double em_prior_log_mean(const em_prior_t *prior, const double *mu, double *zeta);
-
-/// log N(y | μ, Σ) given the Cholesky factor L of Σ and log det Σ (eq. 3.1).
-double em_log_gauss(const double *l, double logdet, size_t d, const double *y, const double *mu);
 
 /// log(e^a + e^b) without overflow.
 double em_logaddexp(double a, double b);

@@ -50,10 +50,9 @@ static md_status_t ridge_point(const ridge_comp_t *ca, const double *ma, const r
             x[i] += ia * ma[j] + ib * mb[j];
         }
     }
-    if (linalg_cholesky(a, d) != MD_OK) {
+    if ((linalg_cholesky(a, d) != MD_OK) || (linalg_cholesky_solve(a, d, x) != MD_OK)) {
         return MD_E_NUMERIC;
     }
-    linalg_cholesky_solve(a, d, x);
     return MD_OK;
 }
 

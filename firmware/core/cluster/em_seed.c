@@ -26,11 +26,11 @@ static md_status_t em_seed_factor(const em_target_t *targets, size_t n_targets, 
 }
 
 /* Assigns each point to the nearest (eq. 3.16) prior cluster of `mask`;
- * labels are the ranks of the chosen clusters within the mask. Returns Σ d^2. */
-static double em_seed_assign(const em_data_t *data, const em_target_t *targets, size_t n_targets,
-                             const em_seed_factors_t *f, uint32_t mask, uint8_t *labels)
+ * labels are the ranks of the chosen clusters within the mask. Σ d^2 into *total. */
+static md_status_t em_seed_assign(const em_data_t *data, const em_target_t *targets, size_t n_targets,
+                                  const em_seed_factors_t *f, uint32_t mask, uint8_t *labels, double *total)
 {
-    double total = 0.0;
+    double sum = 0.0;
     for (size_t i = 0u; i < data->n; ++i) {
         const double *y = &data->y[i * data->d];
         double best = INFINITY;
@@ -41,7 +41,11 @@ static double em_seed_assign(const em_data_t *data, const em_target_t *targets, 
                 continue;
             }
             double work[EM_D_MAX];
-            const double d2 = linalg_mahalanobis2(f->chol[j], data->d, y, targets[j].mean, work);
+            double d2 = 0.0;
+            const md_status_t st = linalg_mahalanobis2(f->chol[j], data->d, y, targets[j].mean, work, &d2);
+            if (st != MD_OK) {
+                return st;
+            }
             if (d2 < best) {
                 best = d2;
                 best_rank = rank;
@@ -51,9 +55,10 @@ static double em_seed_assign(const em_data_t *data, const em_target_t *targets, 
         if (labels != NULL) {
             labels[i] = best_rank;
         }
-        total += best;
+        sum += best;
     }
-    return total;
+    *total = sum;
+    return MD_OK;
 }
 
 static unsigned em_popcount(uint32_t m)
@@ -65,23 +70,29 @@ static unsigned em_popcount(uint32_t m)
     return c;
 }
 
-/* §3.3.4.2: the subset of g prior clusters with the least summed d^2. */
-static uint32_t em_seed_best_subset(const em_data_t *data, const em_target_t *targets,
-                                    size_t n_targets, const em_seed_factors_t *f, size_t g)
+/* §3.3.4.2: the subset of g prior clusters with the least summed d^2, into *best_mask. */
+static md_status_t em_seed_best_subset(const em_data_t *data, const em_target_t *targets,
+                                       size_t n_targets, const em_seed_factors_t *f, size_t g,
+                                       uint32_t *best_mask)
 {
-    uint32_t best_mask = 0u;
+    uint32_t best_m = 0u;
     double best = INFINITY;
     for (uint32_t mask = 1u; mask < (1u << n_targets); ++mask) {
         if (em_popcount(mask) != g) {
             continue;
         }
-        const double total = em_seed_assign(data, targets, n_targets, f, mask, NULL);
-        if ((best_mask == 0u) || (total < best)) {
+        double total = 0.0;
+        const md_status_t st = em_seed_assign(data, targets, n_targets, f, mask, NULL, &total);
+        if (st != MD_OK) {
+            return st;
+        }
+        if ((best_m == 0u) || (total < best)) {
             best = total;
-            best_mask = mask;
+            best_m = mask;
         }
     }
-    return best_mask;
+    *best_mask = best_m;
+    return MD_OK;
 }
 
 /* Mean Euclidean point-to-centroid distance of group `lab`; 0 if < 2 points. */
@@ -266,10 +277,15 @@ md_status_t em_seed_from_targets(const em_data_t *data, const em_target_t *targe
     if (n_targets == 0u) {
         memset(labels, 0, data->n); /* one group, then split (§3.3.4.3 with J = 0) */
     } else {
-        const uint32_t all = (1u << n_targets) - 1u;
-        const uint32_t mask = (g < n_targets) ? em_seed_best_subset(data, targets, n_targets, &f, g)
-                                              : all;
-        (void)em_seed_assign(data, targets, n_targets, &f, mask, labels);
+        uint32_t mask = (1u << n_targets) - 1u; /* all */
+        double total = 0.0;
+        md_status_t st = (g < n_targets) ? em_seed_best_subset(data, targets, n_targets, &f, g, &mask) : MD_OK;
+        if (st == MD_OK) {
+            st = em_seed_assign(data, targets, n_targets, &f, mask, labels, &total);
+        }
+        if (st != MD_OK) {
+            return st;
+        }
         have = em_seed_compact(labels, data->n);
     }
     const md_status_t st = em_seed_grow(data, have, g, ws, labels);

@@ -29,7 +29,8 @@ typedef struct {
 
 /// Computes seed labels (0..g-1, one per point) for a model with g clusters.
 /// targets may be NULL when n_targets = 0. Each target's cluster_cov must be SPD.
-/// MD_E_ARG on bad arguments, MD_E_NUMERIC if a cluster_cov is not SPD,
+/// MD_E_ARG on bad arguments, MD_E_NUMERIC if a cluster_cov is not SPD or a
+/// point is not finite,
 /// MD_E_DEGENERATE if the partition cannot reach g non-empty groups
 /// (too few points or every group too small to split).
 /// O(C(J,g) · n · g · d^2) for the subset search, O(n log n) per split.

@@ -1,9 +1,10 @@
 /// @file linalg.c
 /// Dense linear algebra for small SPD / symmetric matrices (see linalg.h).
 ///
-/// Every loop is bounded by n <= LINALG_MAX_N or by the caller's sweep bound.
-/// Routines that return void guard their arguments and do nothing on misuse;
-/// routines that return md_status_t report it.
+/// Every loop is bounded by n <= LINALG_MAX_N or by the caller's sweep bound
+/// (linalg_matmul: by the caller's sizes). Routines that return md_status_t
+/// report misuse; linalg_cholesky_logdet returns NaN for it; linalg_matmul
+/// writes nothing.
 #include "common/linalg.h"
 
 #include <math.h>
@@ -81,7 +82,7 @@ md_status_t linalg_cholesky(double *a, size_t n)
 double linalg_cholesky_logdet(const double *l, size_t n)
 {
     if ((l == NULL) || !linalg_size_ok(n)) {
-        return 0.0;
+        return (double)NAN;
     }
     double s = 0.0;
     for (size_t i = 0u; i < n; ++i) {
@@ -102,10 +103,10 @@ static void linalg_forward(const double *l, size_t n, double *b)
     }
 }
 
-void linalg_cholesky_solve(const double *l, size_t n, double *b)
+md_status_t linalg_cholesky_solve(const double *l, size_t n, double *b)
 {
     if ((l == NULL) || (b == NULL) || !linalg_size_ok(n)) {
-        return;
+        return MD_E_ARG;
     }
     linalg_forward(l, n, b);
     /* L^T x = y, backward; i counts down without unsigned wrap-around. */
@@ -117,6 +118,7 @@ void linalg_cholesky_solve(const double *l, size_t n, double *b)
         }
         b[i] = s / l[i * n + i];
     }
+    return linalg_all_finite(b, n) ? MD_OK : MD_E_NUMERIC;
 }
 
 md_status_t linalg_spd_inverse(const double *a, size_t n, double *inv, double *work, double *logdet)
@@ -136,7 +138,9 @@ md_status_t linalg_spd_inverse(const double *a, size_t n, double *inv, double *w
         for (size_t i = 0u; i < n; ++i) {
             row[i] = (i == j) ? 1.0 : 0.0;
         }
-        linalg_cholesky_solve(work, n, row);
+        if (linalg_cholesky_solve(work, n, row) != MD_OK) {
+            return MD_E_NUMERIC;
+        }
     }
     /* Symmetrise away the rounding asymmetry of the two triangles. */
     for (size_t i = 0u; i < n; ++i) {
@@ -155,10 +159,26 @@ md_status_t linalg_spd_inverse(const double *a, size_t n, double *inv, double *w
     return MD_OK;
 }
 
-double linalg_mahalanobis2(const double *l, size_t n, const double *x, const double *m, double *work)
+/* True if the lower triangle of l is finite and its diagonal non-zero: a
+ * triangular factor the forward substitution can use. */
+static int linalg_factor_ok(const double *l, size_t n)
 {
-    if ((l == NULL) || (x == NULL) || (m == NULL) || (work == NULL) || !linalg_size_ok(n)) {
-        return 0.0;
+    for (size_t i = 0u; i < n; ++i) {
+        if (!linalg_all_finite(&l[i * n], i + 1u) || !(fabs(l[i * n + i]) > 0.0)) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+md_status_t linalg_mahalanobis2(const double *l, size_t n, const double *x, const double *m, double *work,
+                                double *d2)
+{
+    if (d2 != NULL) {
+        *d2 = (double)NAN;
+    }
+    if ((l == NULL) || (x == NULL) || (m == NULL) || (work == NULL) || (d2 == NULL) || !linalg_size_ok(n)) {
+        return MD_E_ARG;
     }
     for (size_t i = 0u; i < n; ++i) {
         work[i] = x[i] - m[i];
@@ -169,7 +189,20 @@ double linalg_mahalanobis2(const double *l, size_t n, const double *x, const dou
     for (size_t i = 0u; i < n; ++i) {
         s += work[i] * work[i];
     }
-    return s;
+    if (isfinite(s) != 0) {
+        *d2 = s;
+        return MD_OK;
+    }
+    /* A non-finite x, m or factor entry, or a zero pivot, always makes the sum
+     * non-finite, so the inputs are checked only here, off the common path.
+     * With all of them valid, a non-finite sum is an overflow (x - m beyond
+     * the double range, or inf - inf in the solve): a distance larger than
+     * any double. */
+    if (!linalg_all_finite(x, n) || !linalg_all_finite(m, n) || !linalg_factor_ok(l, n)) {
+        return MD_E_NUMERIC;
+    }
+    *d2 = HUGE_VAL;
+    return MD_OK;
 }
 
 /* Sum of squares of the strict upper triangle and of the whole matrix. */

@@ -54,7 +54,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_config.h"
 
 #define AG_HISTORY 8u                       ///< intervals kept for the growth and standstill rules

@@ -185,7 +185,9 @@ static md_status_t sc_log_evidence_m(const sc_curve_t *c, const sc_config_t *cfg
             return MD_E_NUMERIC;
         }
         logdet_n = linalg_cholesky_logdet(s, p);
-        linalg_cholesky_solve(s, p, mu);
+        if (linalg_cholesky_solve(s, p, mu) != MD_OK) {
+            return MD_E_NUMERIC;
+        }
         for (size_t a = 0u; a < p; ++a) {
             fit += mu[a] * t[a];
         }
@@ -322,8 +324,7 @@ md_status_t sc_curve_fit(const sc_curve_t *curve, uint8_t m, double *coef, doubl
     if (linalg_cholesky(a, m) != MD_OK) {
         return MD_E_NUMERIC;
     }
-    linalg_cholesky_solve(a, m, b);
-    if (!linalg_all_finite(b, m)) {
+    if (linalg_cholesky_solve(a, m, b) != MD_OK) {
         return MD_E_NUMERIC;
     }
     (void)memcpy(coef, b, m * sizeof *b);

@@ -29,7 +29,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 
 #define SC_M_MAX 4u        ///< highest model order: cubic (m = 4 coefficients)
 #define SC_HIST_MAX 32u    ///< observations kept per curve (oldest dropped first)

@@ -21,7 +21,7 @@
 #include <stdint.h>
 
 #include "common/eigen_top.h"
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_config.h"
 
 /// Waveforms whose RMS spread sqrt(total_var / d_w) is at most this fraction

@@ -187,11 +187,17 @@ md_status_t qm_isolation_distance(const double *y, size_t n, size_t d, const uin
         if (labels[i] == label) {
             out->n_members++;
         } else {
-            work[k++] = linalg_mahalanobis2(chol, d, &y[i * d], mu, tmp);
+            const md_status_t sd = linalg_mahalanobis2(chol, d, &y[i * d], mu, tmp, &work[k++]);
+            if (sd != MD_OK) {
+                return sd;
+            }
         }
     }
     for (size_t i = 0u; i < m; ++i) {
-        work[k++] = linalg_mahalanobis2(chol, d, &noise_y[i * d], mu, tmp);
+        const md_status_t sd = linalg_mahalanobis2(chol, d, &noise_y[i * d], mu, tmp, &work[k++]);
+        if (sd != MD_OK) {
+            return sd;
+        }
     }
     out->n_nonmembers = k;
     if (out->n_members < 2u) {

@@ -19,7 +19,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "features/pca.h"
 #include "md_config.h"
 
@@ -48,7 +48,8 @@ md_status_t qm_snr(const double *wave, size_t n, size_t stride, size_t d_w, cons
 /// centre/cov: μ_g and Σ_g (d and d×d values) from the clustering; if either
 /// is NULL both are estimated from the members (mean, 1/(n_g-1) covariance).
 /// work: at least (n + m) * d doubles. MD_E_DEGENERATE if the cluster has fewer than
-/// 2 members (or d+1 when Σ_g is estimated); MD_E_NUMERIC if Σ_g is not PD.
+/// 2 members (or d+1 when Σ_g is estimated); MD_E_NUMERIC if Σ_g is not PD or
+/// a point is not finite.
 /// O((n + m) d^2) plus an O(n + m) expected selection.
 md_status_t qm_isolation_distance(const double *y, size_t n, size_t d, const uint8_t *labels, uint8_t label,
                                   const double *noise_y, size_t m, const double *centre, const double *cov,

@@ -58,7 +58,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "features/pca.h"
 #include "md_config.h"
 #include "metrics/quality.h"

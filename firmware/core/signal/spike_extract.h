@@ -27,7 +27,7 @@
 #include <stdint.h>
 
 #include "common/md_rng.h"
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_config.h"
 #include "signal/spike_detect.h"
 

@@ -20,7 +20,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "signal/spike_detect.h"
 #include "signal/spike_extract.h"
 

@@ -15,7 +15,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 
 #define SYNTH_TEMPLATE_MAX 96u  ///< template samples (1.7 ms at up to 50 kHz)
 

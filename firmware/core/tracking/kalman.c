@@ -270,7 +270,9 @@ md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *m
     for (size_t c = 0u; c < d; ++c) {
         z[c] = mu[c] - kf_dot(&h[c * n], st->x, n); /* innovation */
     }
-    linalg_cholesky_solve(ws->sl, d, z);
+    if (linalg_cholesky_solve(ws->sl, d, z) != MD_OK) {
+        return MD_E_NUMERIC;
+    }
     double xnew[KF_DW_MAX];
     for (size_t i = 0u; i < n; ++i) {
         xnew[i] = st->x[i] + kf_dot(&ws->p[i * d], z, d); /* eq. 4.15-4.16: x += P S⁻¹ ν */
@@ -304,7 +306,9 @@ md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *m
     for (size_t j = 0u; j < k; ++j) {
         double sol[KF_D_MAX];
         memcpy(sol, pc[j], d * sizeof sol[0]);
-        linalg_cholesky_solve(ws->sl, d, sol);
+        if (linalg_cholesky_solve(ws->sl, d, sol) != MD_OK) {
+            return MD_E_NUMERIC;
+        }
         for (size_t i = 0u; i < k; ++i) {
             ws->m[i * k + j] -= kf_dot(pc[i], sol, d);
         }

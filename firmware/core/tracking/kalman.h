@@ -26,7 +26,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_config.h"
 
 #define KF_DW_MAX MD_WAVE_LEN_MAX  ///< waveform length d_w

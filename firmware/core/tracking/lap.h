@@ -21,7 +21,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_config.h"
 
 #define LAP_MAX_ROWS MD_G_MAX                          ///< clusters of one model

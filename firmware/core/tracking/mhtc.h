@@ -44,7 +44,7 @@
 #include <stdint.h>
 
 #include "cluster/cluster.h"
-#include "common/md_status.h"
+#include "md_status.h"
 #include "features/pca.h"
 #include "md_config.h"
 #include "tracking/kalman.h"

@@ -8,15 +8,17 @@
 #include "common/linalg.h"
 #include "tracking/mhtc_internal.h"
 
-/* Squared Mahalanobis distance of μ_g from target j's prediction under S_j. */
-static double mhtc_d2(const mhtc_workspace_t *ws, size_t j, const double *mu, size_t d)
+/* Squared Mahalanobis distance of μ_g from target j's prediction under S_j into
+ * *d2; +inf (outside every gate) when S_j is not positive definite. */
+static md_status_t mhtc_d2(const mhtc_workspace_t *ws, size_t j, const double *mu, size_t d, double *d2)
 {
     double l[EM_D_MAX * EM_D_MAX], work[EM_D_MAX];
     memcpy(l, ws->targets[j].s_cov, d * d * sizeof l[0]);
     if (linalg_cholesky(l, d) != MD_OK) {
-        return INFINITY;
+        *d2 = INFINITY;
+        return MD_OK;
     }
-    return linalg_mahalanobis2(l, d, mu, ws->targets[j].mean, work);
+    return linalg_mahalanobis2(l, d, mu, ws->targets[j].mean, work, d2);
 }
 
 /* MAP-NN: each cluster to argmax_j ζ_gj, clusters in decreasing ζ; a taken target or j = 0 → new. */
@@ -46,14 +48,17 @@ static void mhtc_assign_map_nn(const mhtc_model_t *m, size_t nt, lap_solution_t 
 }
 
 /* ML-NN: closest (cluster, target) pairs first, within gate²; the rest are new tracks. */
-static void mhtc_assign_ml_nn(const mhtc_workspace_t *ws, const mhtc_model_t *m, size_t nt, double gate2,
-                              lap_solution_t *s)
+static md_status_t mhtc_assign_ml_nn(const mhtc_workspace_t *ws, const mhtc_model_t *m, size_t nt, double gate2,
+                                     lap_solution_t *s)
 {
     double d2[MHTC_G_MAX][MHTC_TARGETS_MAX];
     for (size_t g = 0u; g < m->g; ++g) {
         s->col_of_row[g] = (int8_t)(nt + g);
         for (size_t j = 0u; j < nt; ++j) {
-            d2[g][j] = mhtc_d2(ws, j, m->fit.params.mean[g], m->fit.params.d);
+            const md_status_t rc = mhtc_d2(ws, j, m->fit.params.mean[g], m->fit.params.d, &d2[g][j]);
+            if (rc != MD_OK) {
+                return rc;
+            }
         }
     }
     bool done[MHTC_G_MAX] = {false};
@@ -76,6 +81,7 @@ static void mhtc_assign_ml_nn(const mhtc_workspace_t *ws, const mhtc_model_t *m,
         taken[bj] = true;
         s->col_of_row[bg] = (int8_t)bj;
     }
+    return MD_OK;
 }
 
 /* GNN: the single best assignment of A* with pairs outside the gate forbidden. */
@@ -90,8 +96,10 @@ static md_status_t mhtc_assign_gnn(const mhtc_state_t *st, mhtc_workspace_t *ws,
                                       st->cfg.lambda_false, ws->cost);
     const size_t cols = nt + 2u * m->g;
     for (size_t g = 0u; (rc == MD_OK) && (g < m->g); ++g) {
-        for (size_t j = 0u; j < nt; ++j) {
-            if (mhtc_d2(ws, j, m->fit.params.mean[g], m->fit.params.d) > st->cfg.gnn_gate_chi2) {
+        for (size_t j = 0u; (rc == MD_OK) && (j < nt); ++j) {
+            double d2 = 0.0;
+            rc = mhtc_d2(ws, j, m->fit.params.mean[g], m->fit.params.d, &d2);
+            if ((rc == MD_OK) && (d2 > st->cfg.gnn_gate_chi2)) {
                 ws->cost[g * cols + j] = LAP_FORBIDDEN;
             }
         }
@@ -178,12 +186,12 @@ md_status_t mhtc_baseline(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspa
         if (st->cfg.tracker == MHTC_TRACKER_MAP_NN) {
             mhtc_assign_map_nn(m, nt, s);
         } else if (st->cfg.tracker == MHTC_TRACKER_ML_NN) {
-            mhtc_assign_ml_nn(ws, m, nt, st->cfg.nn_gate_sigma * st->cfg.nn_gate_sigma, s);
+            rc = mhtc_assign_ml_nn(ws, m, nt, st->cfg.nn_gate_sigma * st->cfg.nn_gate_sigma, s);
         } else {
             rc = mhtc_assign_gnn(st, ws, m, nt, s);
-            if (rc != MD_OK) {
-                return rc;
-            }
+        }
+        if (rc != MD_OK) {
+            return rc;
         }
     }
     mhtc_cap_new_tracks(st, ws, nt);

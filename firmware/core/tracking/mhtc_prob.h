@@ -11,7 +11,7 @@
 
 #include <stddef.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_config.h"
 #include "tracking/lap.h"
 
