@@ -56,4 +56,25 @@ for e in m7["electrodes"]:
           f"max {c['max']} instructions (budget {c['budget']})")
 assert all("cost" not in e for e in host["electrodes"]), "the host build has no work counter"
 PY
+
+# Like for like: md-bench-m7 replays the session's recording under QEMU
+# (tools/bench/replay_cost.py; exit 1 if any interval's spikes, tracks or SNR
+# differ from the session's TLM_STATUS) and each cycle's CycleCost must be
+# within 10 % of the replay's instructions for the same interval.
+bench="$(dirname "$image")/md-bench-m7.elf"
+if [ ! -f "$bench" ]; then
+    echo "test_pil_session: no $bench: build the cortex-m7 preset (target md-bench-m7)" >&2
+    exit 1
+fi
+"$py" "$root/tools/bench/replay_cost.py" "$out/m7" --image "$bench" --out "$out/replay" --json "$out/replay/cost.json"
+"$py" - "$out/replay/cost.json" <<'PY'
+import json, sys
+rep = json.load(open(sys.argv[1]))
+rows = rep["intervals"]
+assert len(rows) >= 1, "no interval replayed"
+for x in rows:
+    r = x["session_cycle"] / x["replay_cycle"]
+    assert abs(r - 1.0) <= 0.10, f"cycle {x['cycle']}: CycleCost {x['session_cycle']} vs replay {x['replay_cycle']}"
+print(f"test_pil_session: {len(rows)} intervals: CycleCost within 10 % of md-bench-m7's replay")
+PY
 echo "test_pil_session: $cycles cycles: host and Cortex-M7 decisions and report identical"

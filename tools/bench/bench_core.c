@@ -49,6 +49,7 @@ static double g_depth_um;
 
 static bench_info_t g_info;
 static int g_ready;
+static int g_rp_ready; /* replay mode set up (bench_replay_setup) */
 
 static const char *const STAGE_NAMES[BENCH_ST_COUNT] = {"detect", "pca", "cluster", "mhtc", "quality", "control"};
 
@@ -208,6 +209,7 @@ static md_status_t warm_cycle(uint32_t k)
 md_status_t bench_setup(void)
 {
     g_ready = 0;
+    g_rp_ready = 0; /* the replay's state is overwritten below */
     memset(&g_info, 0, sizeof g_info);
     mhtc_config_t mc;
     mhtc_config_default(&mc, MHTC_TRACKER_MHTC);
@@ -288,4 +290,209 @@ size_t bench_static_bytes(void)
 {
     return sizeof g_trace + sizeof g_scratch + sizeof g_peaks + sizeof g_ws + sizeof g_out + sizeof g_cl_ws +
            sizeof g_cl_res + 2u * sizeof g_mh + 2u * sizeof g_curves + 2u * sizeof g_sfsm;
+}
+
+/* ------------------------------------------------------------------ */
+/* Replay of recorded intervals                                        */
+/* ------------------------------------------------------------------ */
+
+#define RP_DEPTH_MIN_UM 0.0    /* md_params: depth_min_um, depth_max_um, min_rate_hz defaults */
+#define RP_DEPTH_MAX_UM 5000.0
+#define RP_MIN_RATE_HZ 0.5
+
+static const char *const REPLAY_NAMES[BENCH_RP_COUNT] = {"push", "end", "pca", "mhtc", "quality", "control"};
+
+static ag_state_t g_guard;
+static uint32_t g_rp_fs_hz;
+static double g_rp_gain_uv;
+static size_t g_rp_n;              /* samples of the current interval */
+static double g_rp_depth_um;       /* its depth (NaN: unknown) */
+static double g_rp_tracked_um;     /* depth of the last tracked interval (NaN: none yet) */
+static int g_rp_next;              /* next stage to run; BENCH_RP_COUNT: none (done, failed or not begun) */
+static bench_replay_info_t g_rp_info;
+
+const char *bench_replay_stage_name(bench_replay_stage_t s)
+{
+    return ((unsigned)s < (unsigned)BENCH_RP_COUNT) ? REPLAY_NAMES[s] : "?";
+}
+
+md_status_t bench_replay_setup(uint32_t fs_hz, double gain_uv)
+{
+    g_ready = 0;
+    g_rp_ready = 0;
+    g_rp_next = (int)BENCH_RP_COUNT;
+    if (!(gain_uv > 0.0) || !isfinite(gain_uv)) {
+        return MD_E_ARG;
+    }
+    mhtc_config_t mc;
+    mhtc_config_default(&mc, MHTC_TRACKER_MHTC);
+    sfsm_config_t sc;
+    sfsm_config_default(&sc);
+    ag_config_t ag;
+    ag_config_default(&ag);
+    md_status_t st = mhtc_init(&g_mh, &mc);
+    st = (st == MD_OK) ? sfsm_init(&g_sfsm, &sc) : st;
+    st = (st == MD_OK) ? ag_init(&g_guard, &ag) : st;
+    sc_table_init(&g_curves);
+    /* the chain's check of the sample rate: a probe interval of one second */
+    const ic_config_t probe = {fs_hz, gain_uv, fs_hz, ag.top_k};
+    st = (st == MD_OK) ? ic_begin(&g_ws, &probe) : st;
+    if (st != MD_OK) {
+        return st;
+    }
+    memset(&g_ws.stats, 0, sizeof g_ws.stats);
+    memset(&g_rp_info, 0, sizeof g_rp_info);
+    g_rp_fs_hz = fs_hz;
+    g_rp_gain_uv = gain_uv;
+    g_rp_tracked_um = NAN;
+    g_rp_ready = 1;
+    return MD_OK;
+}
+
+int16_t *bench_replay_samples(size_t *cap)
+{
+    if (cap != NULL) {
+        *cap = BENCH_SAMPLES;
+    }
+    return g_trace;
+}
+
+md_status_t bench_replay_interval(size_t n, double depth_um)
+{
+    g_rp_next = (int)BENCH_RP_COUNT;
+    if (g_rp_ready == 0 || n == 0u || n > BENCH_SAMPLES) {
+        return MD_E_ARG;
+    }
+    ag_config_t ag;
+    ag_config_default(&ag);
+    const ic_config_t cfg = {g_rp_fs_hz, g_rp_gain_uv, (uint32_t)n, ag.top_k};
+    const md_status_t st = ic_begin(&g_ws, &cfg);
+    if (st != MD_OK) {
+        return st;
+    }
+    memset(&g_rp_info, 0, sizeof g_rp_info);
+    memset(&g_out, 0, sizeof g_out);
+    g_rp_n = n;
+    g_rp_depth_um = depth_um;
+    g_rp_next = (int)BENCH_RP_PUSH;
+    return MD_OK;
+}
+
+static md_status_t rp_push(void)
+{
+    md_status_t st = MD_OK;
+    for (size_t i = 0u; st == MD_OK && i < g_rp_n; i += BENCH_CHUNK) {
+        const size_t n = (g_rp_n - i < BENCH_CHUNK) ? (g_rp_n - i) : BENCH_CHUNK;
+        st = ic_push(&g_ws, &g_trace[i], n);
+    }
+    return st;
+}
+
+static md_status_t rp_track(void)
+{
+    /* md_cycle.c process(): the travel since the last interval the tracker took */
+    const double move = (isfinite(g_rp_depth_um) && isfinite(g_rp_tracked_um))
+                            ? fabs(g_rp_depth_um - g_rp_tracked_um) : 0.0;
+    return ic_track(&g_ws, &g_mh, move);
+}
+
+static md_status_t rp_score(void)
+{
+    const md_status_t st = ic_score(&g_ws, &g_out);
+    if (st == MD_OK) {
+        g_rp_tracked_um = g_rp_depth_um;
+        g_rp_info.n_spikes = g_out.n_spikes;
+        g_rp_info.dominant = g_out.has_dominant ? g_out.dominant : 0u;
+        g_rp_info.n_tracks = (g_mh.n_hyp > 0u) ? (uint32_t)g_mh.hyp[0].n_tracks : 0u;
+        g_rp_info.n_hyp = (uint32_t)g_mh.n_hyp;
+        g_rp_info.models = (uint32_t)g_ws.res.models_fitted;
+        g_rp_info.snr = g_out.has_dominant ? (float)g_out.snr : 0.0f;
+    }
+    return st;
+}
+
+/* md_cycle.c decide() then guard() (guard_units: the robust amplitude and
+ * every detected track's SNR), with the library defaults. */
+static md_status_t rp_control(void)
+{
+    const double depth = isfinite(g_rp_depth_um) ? g_rp_depth_um : 0.0;
+    sc_config_t scc;
+    sc_config_default(&scc);
+    sfsm_input_t in;
+    memset(&in, 0, sizeof in);
+    in.has_dominant = g_out.has_dominant;
+    in.dominant_track = g_out.dominant;
+    in.snr = g_out.snr;
+    in.iqm = g_out.iqm;
+    in.spikes_seen = ((double)g_out.n_windows / ((double)g_rp_n / (double)g_rp_fs_hz) >= RP_MIN_RATE_HZ) &&
+                     (g_out.n_windows > 0u);
+    in.depth_um = depth;
+    in.depth_min_um = RP_DEPTH_MIN_UM;
+    in.depth_max_um = RP_DEPTH_MAX_UM;
+    if (g_out.has_dominant) {
+        sc_curve_t *curve = NULL;
+        if (sc_table_observe(&g_curves, &scc, g_out.dominant, depth, g_out.snr, &curve) == MD_OK && curve != NULL) {
+            (void)sc_curve_suggest(curve, &scc, depth, g_sfsm.search_dir, &in.suggestion);
+        }
+    }
+    sfsm_output_t out;
+    memset(&out, 0, sizeof out);
+    if (sfsm_step(&g_sfsm, &in, &out) != MD_OK) {
+        return MD_OK; /* the controller holds: HALTED asks for nothing */
+    }
+    if (out.reset_curve) {
+        (void)sc_table_reset_track(&g_curves, out.reset_track);
+    }
+    ag_unit_t unit[AG_UNITS_MAX];
+    size_t n = 0u;
+    unit[n++] = (ag_unit_t){AG_UNIT_RAW, g_out.amp};
+    for (size_t j = 0u; j < g_ws.res.n_tracks && j < MHTC_TARGETS_MAX && n < AG_UNITS_MAX; ++j) {
+        if (g_ws.res.track[j].cluster > 0u && g_ws.track_snr[j] > 0.0) {
+            unit[n++] = (ag_unit_t){g_ws.res.track[j].id, g_ws.track_snr[j]};
+        }
+    }
+    const ag_input_t gin = {unit, n, depth, out.step_um};
+    ag_output_t gout;
+    (void)ag_step(&g_guard, &gin, &gout); /* a refusal holds the electrode: no error of the cycle */
+    return MD_OK;
+}
+
+md_status_t bench_replay_run(bench_replay_stage_t s)
+{
+    if ((unsigned)s >= (unsigned)BENCH_RP_COUNT || (int)s != g_rp_next) {
+        return MD_E_STATE;
+    }
+    md_status_t st = MD_E_ARG;
+    switch (s) {
+    case BENCH_RP_PUSH:
+        st = rp_push();
+        break;
+    case BENCH_RP_END:
+        st = ic_end(&g_ws);
+        break;
+    case BENCH_RP_PCA:
+        st = ic_features(&g_ws);
+        break;
+    case BENCH_RP_MHTC:
+        st = rp_track();
+        break;
+    case BENCH_RP_QUALITY:
+        st = rp_score();
+        break;
+    case BENCH_RP_CONTROL:
+        st = rp_control();
+        break;
+    case BENCH_RP_COUNT:
+    default:
+        break;
+    }
+    g_rp_next = (st == MD_OK) ? (int)s + 1 : (int)BENCH_RP_COUNT;
+    return st;
+}
+
+void bench_replay_info(bench_replay_info_t *info)
+{
+    if (info != NULL) {
+        *info = g_rp_info;
+    }
 }

@@ -83,4 +83,72 @@ const double *bench_features(size_t *n);
 /// Bytes of static storage the benchmark uses (trace, workspaces, copies).
 size_t bench_static_bytes(void);
 
+/* ------------------------------------------------------------------ */
+/* Replay: the cycle over recorded intervals                           */
+/* ------------------------------------------------------------------ */
+
+/// Replay mode: instead of the synthetic interval, the intervals of a
+/// recording (e.g. a session's recording.bin, docs/session.md) are run in
+/// order through the controller's cycle, the tracker, SNR curves, SFSM and
+/// approach guard carrying their state from one interval to the next as in
+/// the controller, so that the work of each interval can be measured and put
+/// next to the cycle cost the controller reported for it (docs/pil.md). The
+/// tracker has the controller's default configuration (mhtc_config_default:
+/// what md_cycle.c makes of the default parameters), the tracker's travel is
+/// the distance between the depths of this and the last tracked interval (as
+/// md_cycle.c measures it); SFSM, SNR curves and guard run with their
+/// library defaults and a 0..5000 µm window (they decide, but their decisions
+/// do not feed back: the depths are the recording's). The stages split the
+/// cycle where the controller's work counter does: BENCH_RP_PUSH is what
+/// TLM_STATUS CycleCost minus ProcessCost measures (the samples streamed in
+/// 30-sample chunks, one per REC_DATA frame), the rest is ProcessCost.
+/// Shares the static storage of the synthetic mode: bench_setup() and
+/// bench_replay_setup() each start over.
+typedef enum {
+    BENCH_RP_PUSH = 0,  ///< ic_push in 30-sample chunks (ic_begin runs unmeasured, as md_cycle.c's start_recording)
+    BENCH_RP_END,       ///< ic_end: the end of detection, extraction of windows and noise snippets
+    BENCH_RP_PCA,       ///< ic_features
+    BENCH_RP_MHTC,      ///< ic_track with the travel since the last tracked interval
+    BENCH_RP_QUALITY,   ///< ic_score
+    BENCH_RP_CONTROL,   ///< as md_cycle.c decide() + guard(): SNR curve, SFSM, approach guard
+    BENCH_RP_COUNT
+} bench_replay_stage_t;
+
+/// Short replay stage name ("push", "end", ...); "?" if out of range.
+const char *bench_replay_stage_name(bench_replay_stage_t s);
+
+/// Starts a replay of a channel sampled at fs_hz with gain_uv µV per count:
+/// a fresh tracker, SFSM, SNR-curve table and guard. MD_E_ARG if the
+/// interval chain does not take fs_hz (7500..32768 Hz) or gain_uv <= 0.
+md_status_t bench_replay_setup(uint32_t fs_hz, double gain_uv);
+
+/// Where the driver puts the next interval's samples (int16 counts); *cap
+/// receives the room (BENCH_SAMPLES).
+int16_t *bench_replay_samples(size_t *cap);
+
+/// The next interval: n samples (1..cap) now in the buffer, recorded at
+/// depth_um (NaN: unknown, no travel). Starts the chain (ic_begin). MD_E_ARG
+/// before bench_replay_setup() or on a bad n; the chain's error otherwise.
+md_status_t bench_replay_interval(size_t n, double depth_um);
+
+/// Runs stage s of the current interval; stages run once each, in order.
+/// MD_E_STATE out of order or after a stage of this interval failed (the
+/// controller then skips the cycle: the tracker is unchanged); the stage's
+/// own status otherwise.
+md_status_t bench_replay_run(bench_replay_stage_t s);
+
+/// What the interval said, in TLM_STATUS's terms, to check that the replay
+/// computed what the controller did (valid after BENCH_RP_QUALITY).
+typedef struct {
+    uint32_t n_spikes;   ///< windows given to the tracker (TLM_STATUS NumSpikes)
+    uint32_t dominant;   ///< dominant track id, 0 if none (DominantTrack)
+    uint32_t n_tracks;   ///< tracks of the leading hypothesis (NumTracks)
+    uint32_t n_hyp;      ///< hypotheses (NumHypotheses)
+    uint32_t models;     ///< model hypotheses clustered in the step
+    float snr;           ///< SNR of the dominant track as TLM_STATUS carries it (Snr, float32)
+} bench_replay_info_t;
+
+/// Copies the current interval's facts into *info.
+void bench_replay_info(bench_replay_info_t *info);
+
 #endif

@@ -266,6 +266,10 @@ def main() -> int:
     w("Needs valgrind (callgrind and its client-request header), qemu-system-arm, gcc-arm-none-eabi, python3-venv "
       "and PyPI for `tools/bench/requirements.txt`. `ctest -R md_bench_smoke` only checks that the host bench runs "
       "every stage.")
+    w("")
+    w("The same stages over the intervals a session processed instead of the synthetic one: "
+      "`tools/bench/replay_cost.py SESSION_DIR` (md-bench-m7 `--replay` over the session's recording, "
+      "each interval next to the CycleCost the controller reported for it; docs/pil.md).")
     out.write_text("\n".join(L) + "\n")
     return 0
 

@@ -13,7 +13,10 @@ The first differing electrode cycle is named with its interval (IntervalId,
 start time) and the decoded fields that differ; then every differing cycle is
 counted by frame and field, so that a difference confined to one field shows
 as such. Only the cycles both sessions
-completed are compared (--cycles N: the first N). Also printed, not compared:
+completed are compared (--cycles N: the first N), each with the telemetry the
+controller sent after its TLM_STATUS (TLM_TRACK, TLM_WAVE, TLM_HYP,
+TLM_SPIKES: for the last compared cycle, what the logs hold after that
+TLM_STATUS; the report is scored from it). Also printed, not compared:
 the controller's heartbeat-loss EMCYs (0x8130) in each session, the usual
 cause of a difference that is the link's and not the computation's.
 
@@ -34,6 +37,8 @@ SIM_STEP = 0x021
 EMCY_CTRL = 0x081
 TLM_STATUS = 0x500
 TLM_CYCLE = 0x505
+# What the controller sends about a cycle after its TLM_STATUS (md_tlm_interval).
+TAIL_IDS = {0x510, 0x520, 0x530, 0x540}
 # TLM_STATUS CycleCost (bit 256) and ProcessCost (bit 288): bytes 32..39.
 COST_BYTES = slice(32, 40)
 
@@ -84,27 +89,56 @@ def decode_diff(db, fid, a, b):
         return {"raw": (a.hex(), b.hex()), "decode": str(exc)}
 
 
+def telemetry_tail(frames):
+    """The leading frames of a list that are a cycle's telemetry after its TLM_STATUS."""
+    n = 0
+    while n < len(frames) and frames[n][0] in TAIL_IDS:
+        n += 1
+    return frames[:n]
+
+
+def compared(a, b, e, cycles):
+    """Per electrode: the closed cycles to compare (as pairs of frame lists), each
+    followed by the telemetry that came after its TLM_STATUS (the head of the
+    next list; of the open list after the last closed cycle), which the
+    controller sends right after the TLM_STATUS."""
+    la, lb = a.get(e, [[]]), b.get(e, [[]])
+    n = min(len(la), len(lb)) - 1                       # closed cycles of both
+    if cycles:
+        n = min(n, cycles)
+    pairs = [(la[k], lb[k]) for k in range(n)]
+    tail = (telemetry_tail(la[n]), telemetry_tail(lb[n])) if n >= 0 else ([], [])
+    return pairs, tail
+
+
+def frame_diff(db, fa_list, fb_list):
+    """(index, name, fields) of the first differing frame of two lists, or None."""
+    for j, (fa, fb) in enumerate(zip(fa_list, fb_list)):
+        if fa != fb:
+            name = PER_ELECTRODE.get(fa[0], hex(fa[0])) if fa[0] == fb[0] else \
+                f"{PER_ELECTRODE.get(fa[0], hex(fa[0]))} vs {PER_ELECTRODE.get(fb[0], hex(fb[0]))}"
+            return j, name, (decode_diff(db, fa[0], fa[1], fb[1]) if fa[0] == fb[0] else None)
+    if len(fa_list) != len(fb_list):
+        return min(len(fa_list), len(fb_list)), f"frame count {len(fa_list)} vs {len(fb_list)}", None
+    return None
+
+
 def first_difference(db, a, b, info_a, cycles):
     for e in sorted(set(a) | set(b)):
-        ca, cb = a.get(e, [[]])[:-1], b.get(e, [[]])[:-1]   # closed cycles only
-        n = min(len(ca), len(cb))
-        if cycles:
-            n = min(n, cycles)
-        for k in range(n):
-            if ca[k] == cb[k]:
+        pairs, tail = compared(a, b, e, cycles)
+        for k, (ca, cb) in enumerate(pairs + [tail]):
+            if ca == cb:
                 continue
-            interval, start = info_a.get(e, [])[k] if k < len(info_a.get(e, [])) else (None, None)
-            out = {"electrode": e, "cycle_index": k, "interval_id": interval,
+            last = k == len(pairs)                      # the tail: telemetry after the last compared TLM_STATUS
+            c = k - 1 if last else k
+            interval, start = info_a.get(e, [])[c] if 0 <= c < len(info_a.get(e, [])) else (None, None)
+            out = {"electrode": e, "cycle_index": c, "interval_id": interval,
                    "start_time_s": None if start is None else start / 1e6}
-            for j, (fa, fb) in enumerate(zip(ca[k], cb[k])):
-                if fa != fb:
-                    out["frame"] = PER_ELECTRODE.get(fa[0], hex(fa[0])) if fa[0] == fb[0] else \
-                        f"{PER_ELECTRODE.get(fa[0], hex(fa[0]))} vs {PER_ELECTRODE.get(fb[0], hex(fb[0]))}"
-                    out["frame_index"] = j
-                    if fa[0] == fb[0]:
-                        out["fields"] = decode_diff(db, fa[0], fa[1], fb[1])
-                    return out
-            out["frame"] = f"frame count {len(ca[k])} vs {len(cb[k])}"
+            j, name, fields = frame_diff(db, ca, cb)
+            out["frame"] = name + (" (telemetry after the cycle's TLM_STATUS)" if last else "")
+            out["frame_index"] = j
+            if fields is not None:
+                out["fields"] = fields
             return out
     return None
 
@@ -113,16 +147,15 @@ def all_differences(db, a, b, cycles):
     """(frame.field -> cycles in which it differs), differing cycles in total."""
     fields, n_cycles = defaultdict(int), 0
     for e in sorted(set(a) | set(b)):
-        ca, cb = a.get(e, [[]])[:-1], b.get(e, [[]])[:-1]
-        n = min(len(ca), len(cb)) if not cycles else min(len(ca), len(cb), cycles)
-        for k in range(n):
-            if ca[k] == cb[k]:
+        pairs, tail = compared(a, b, e, cycles)
+        for k, (ca, cb) in enumerate(pairs + [tail]):
+            if ca == cb:
                 continue
             n_cycles += 1
             seen = set()
-            if len(ca[k]) != len(cb[k]):
+            if len(ca) != len(cb):
                 seen.add("frame count")
-            for fa, fb in zip(ca[k], cb[k]):
+            for fa, fb in zip(ca, cb):
                 if fa == fb:
                     continue
                 if fa[0] != fb[0]:
@@ -130,6 +163,8 @@ def all_differences(db, a, b, cycles):
                     continue
                 for name in decode_diff(db, fa[0], fa[1], fb[1]):
                     seen.add(f"{PER_ELECTRODE.get(fa[0], hex(fa[0]))}.{name}")
+            if k == len(pairs):
+                seen = {f"{x} (last cycle's telemetry)" for x in seen}
             for name in seen:
                 fields[name] += 1
     return dict(fields), n_cycles

@@ -182,6 +182,9 @@ typedef struct {
     uint32_t status_count[SESSION_MAX_ELECTRODES];
     int32_t status_last_cycle[SESSION_MAX_ELECTRODES];    ///< -1: none yet
     int32_t need_cycle[SESSION_MAX_ELECTRODES];           ///< duration goal: last cycle started before it
+    bool moved_on;               ///< a REC_REQ, ACT_CMD or TLM_CYCLE followed the latest TLM_STATUS: the
+                                 ///< controller is past that cycle, whose telemetry (sent right after its
+                                 ///< TLM_STATUS) is therefore all in
     bool fw_booted;              ///< the controller's boot-up heartbeat was seen
     uint32_t fe_info_mask;       ///< electrodes announced by the front-end (FE_INFO)
     uint64_t hb_seen[6];         ///< heartbeats per node id 1..5
@@ -197,6 +200,12 @@ void session_track_frame(session_track_t *t, const md_frame_t *f, uint64_t stamp
 
 /// True when the goal is reached for every electrode.
 bool session_track_done(const session_track_t *t);
+
+/// True when, in addition, the telemetry of the cycle that reached the goal is
+/// complete (moved_on): what a socket-bus session waits for before it stops
+/// the processes, since the controller sends that telemetry after the
+/// TLM_STATUS that completes the goal.
+bool session_track_done_complete(const session_track_t *t);
 
 /// One-line summary (cycles per electrode, simulated time) to `out`.
 void session_track_summary(const session_track_t *t, FILE *out);

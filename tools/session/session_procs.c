@@ -26,6 +26,9 @@ extern char **environ;
 
 #define PROCS_SLICE_US 50000
 #define PROCS_BOOT_WAIT_US 10000000u
+/* After the goal: how long to wait for the telemetry of the cycle that reached
+ * it (session_track_done_complete), wall time. */
+#define PROCS_TAIL_WAIT_US 60000000u
 #define PROCS_TERM_WAIT_MS 15000   /* a slow VM may be in the middle of a 10 s batch */
 /// SocketCAN (no flow control): the recorder's socket buffer. A 10 s interval
 /// is ~11 000 frames in a burst, each charged ~1 kB of buffer, and the
@@ -198,14 +201,27 @@ static int open_recorder(const session_opts_t *o, session_track_t *t, char *bus_
 
 static session_end_t procs_loop(const session_opts_t *o, session_track_t *t, pid_t fw, pid_t bridge, pid_t sim)
 {
-    uint64_t last_activity = t->activity, activity_at = mono_us();
+    uint64_t last_activity = t->activity, activity_at = mono_us(), goal_at = 0u;
     const uint64_t idle_us = (uint64_t)(o->idle_s * 1e6);
     for (;;) {   /* ends by the goal, idleness, a signal or a dead process */
         if (record_slice(t, PROCS_SLICE_US) != 0) {
             return SESSION_END_ERROR;
         }
-        if (session_track_done(t)) {
+        /* The goal's last TLM_STATUS is followed by that cycle's telemetry;
+         * over a slow link (--controller m7) it is still on its way: the
+         * processes stop once the controller has moved on to its next step. */
+        if (session_track_done_complete(t)) {
             return SESSION_END_GOAL;
+        }
+        if (session_track_done(t)) {
+            if (goal_at == 0u) {
+                goal_at = mono_us();
+            } else if (mono_us() - goal_at >= PROCS_TAIL_WAIT_US) {
+                fprintf(stderr, "microdrive-session: WARNING: the controller did not move on within %u s of the "
+                                "goal: the telemetry of its last cycle may be incomplete\n",
+                        (unsigned)(PROCS_TAIL_WAIT_US / 1000000u));
+                return SESSION_END_GOAL;
+            }
         }
         if (session_stop_signal != 0) {
             return SESSION_END_SIGNAL;

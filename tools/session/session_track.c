@@ -47,6 +47,7 @@ static void track_status(session_track_t *t, const md_frame_t *f)
     }
     t->status_count[s.electrode]++;
     t->status_last_cycle[s.electrode] = (int32_t)s.cycle;
+    t->moved_on = false; /* its TLM_TRACK, TLM_WAVE, TLM_HYP and TLM_SPIKES follow */
     if (t->quiet) {
         return;
     }
@@ -116,6 +117,11 @@ void session_track_frame(session_track_t *t, const md_frame_t *f, uint64_t stamp
         break;
     case MD_CAN_TLM_CYCLE_FRAME_ID:
         track_cycle(t, f);
+        t->moved_on = true;
+        break;
+    case MD_CAN_REC_REQ_FRAME_ID:
+    case MD_CAN_ACT_CMD_FRAME_ID:
+        t->moved_on = true;
         break;
     default:
         break;
@@ -145,6 +151,11 @@ bool session_track_done(const session_track_t *t)
         return true;
     }
     return false;
+}
+
+bool session_track_done_complete(const session_track_t *t)
+{
+    return session_track_done(t) && t->moved_on;
 }
 
 void session_track_summary(const session_track_t *t, FILE *out)

@@ -29,6 +29,72 @@ int32_t md_sh_get_cmdline(char *buf, uint32_t cap)
     return (int32_t)block[1];
 }
 
+/* Parameter blocks of the file calls: words of the AArch32 semihosting ABI,
+ * addresses as pointers (32 bits on the M7), so no pointer becomes an integer. */
+typedef struct {
+    const char *name;
+    uint32_t mode;
+    uint32_t len;     /* of the name, without its NUL */
+} sh_open_block_t;
+
+typedef struct {
+    uint32_t handle;
+    void *buf;
+    uint32_t len;
+} sh_read_block_t;
+
+_Static_assert(sizeof(sh_open_block_t) == 3u * sizeof(uint32_t), "SYS_OPEN block: three words");
+_Static_assert(sizeof(sh_read_block_t) == 3u * sizeof(uint32_t), "SYS_READ block: three words");
+
+int32_t md_sh_open_read(const char *path)
+{
+    if (path == NULL) {
+        return -1;
+    }
+    uint32_t len = 0u;
+    while (len < 4096u && path[len] != '\0') {
+        ++len;
+    }
+    if (len == 0u || len >= 4096u) {
+        return -1;
+    }
+    const sh_open_block_t block = {path, MD_SH_OPEN_RB, len};
+    return (int32_t)sh_call(MD_SH_SYS_OPEN, &block);
+}
+
+int32_t md_sh_read(int32_t handle, void *buf, uint32_t len)
+{
+    if (handle < 0 || (buf == NULL && len > 0u) || len > (uint32_t)INT32_MAX) {
+        return -1;
+    }
+    const sh_read_block_t block = {(uint32_t)handle, buf, len};
+    /* the host answers with the bytes NOT read (0: all of them) */
+    const uint32_t left = sh_call(MD_SH_SYS_READ, &block);
+    if (left > len) {
+        return -1;
+    }
+    const uint32_t got = len - left;
+    return (int32_t)got;
+}
+
+int32_t md_sh_seek(int32_t handle, uint32_t pos)
+{
+    if (handle < 0) {
+        return -1;
+    }
+    const uint32_t block[2] = {(uint32_t)handle, pos};
+    return (sh_call(MD_SH_SYS_SEEK, block) == 0u) ? 0 : -1;
+}
+
+int32_t md_sh_close(int32_t handle)
+{
+    if (handle < 0) {
+        return -1;
+    }
+    const uint32_t block[1] = {(uint32_t)handle};
+    return (sh_call(MD_SH_SYS_CLOSE, block) == 0u) ? 0 : -1;
+}
+
 void md_sh_write0(const char *s)
 {
     if (s != NULL) {

@@ -17,6 +17,12 @@
 #define MD_SH_SYS_EXIT 0x18u
 #define MD_SH_SYS_GET_CMDLINE 0x15u
 #define MD_SH_SYS_EXIT_EXTENDED 0x20u
+#define MD_SH_SYS_OPEN 0x01u
+#define MD_SH_SYS_CLOSE 0x02u
+#define MD_SH_SYS_READ 0x06u
+#define MD_SH_SYS_SEEK 0x0Au
+/// SYS_OPEN mode "rb" (read, binary).
+#define MD_SH_OPEN_RB 1u
 /// Reason code of SYS_EXIT*: the application finished normally.
 #define MD_SH_ADP_STOPPED_APPLICATION_EXIT 0x20026u
 /// Reason code of SYS_EXIT: unknown run-time error (QEMU exits with 1).
@@ -39,6 +45,22 @@ void md_sh_write_hex(uint32_t v);
 
 /// Write `v` in decimal.
 void md_sh_write_uint(uint32_t v);
+
+/// Open a host file for reading (SYS_OPEN, mode "rb"); for tools such as
+/// md-bench-m7 that read their input from the host, not for the firmware.
+/// Returns the handle (>= 0), or -1 if the host cannot open it.
+int32_t md_sh_open_read(const char *path);
+
+/// Read up to `len` bytes from `handle` into `buf` (SYS_READ). Returns the
+/// bytes read (len unless the file ended), or -1 on an error.
+int32_t md_sh_read(int32_t handle, void *buf, uint32_t len);
+
+/// Move to byte `pos` of the file (SYS_SEEK; 32-bit positions, files up to
+/// 4 GiB). 0 on success, -1 on an error.
+int32_t md_sh_seek(int32_t handle, uint32_t pos);
+
+/// Close a handle of md_sh_open_read (SYS_CLOSE). 0 on success, -1 on an error.
+int32_t md_sh_close(int32_t handle);
 
 /// Map a C exit status onto a process exit status 0..255 without letting a
 /// failure wrap to 0 (e.g. 256 failed tests): 0 stays 0, 1..255 stay, any
