@@ -123,6 +123,28 @@ static md_status_t kf_rebuild(kf_state_t *st, kf_work_t *ws, size_t k)
 }
 
 /* M = Wᵀ (Σ e_i v_i v_iᵀ) W for the current directions, k×k. */
+/* M += w·c cᵀ (k×k): one direction of Λ - aI seen in the basis W. */
+static void kf_add_outer(kf_work_t *ws, size_t k, const double *c, double w)
+{
+    for (size_t i = 0u; i < k; ++i) {
+        for (size_t j = 0u; j < k; ++j) {
+            ws->m[i * k + j] += w * c[i] * c[j];
+        }
+    }
+}
+
+/* Appends the current directions v_i to the orthonormal set w[0..*k). */
+static void kf_span_lowrank(const kf_state_t *st, kf_work_t *ws, size_t *k)
+{
+    double v[KF_DW_MAX];
+    for (size_t r = 0u; r < st->rank; ++r) {
+        for (size_t i = 0u; i < st->d_w; ++i) {
+            v[i] = (double)st->v[r][i];
+        }
+        kf_gs_append(ws, k, v, st->d_w);
+    }
+}
+
 static void kf_project_lowrank(const kf_state_t *st, kf_work_t *ws, size_t k)
 {
     const size_t n = st->d_w;
@@ -132,11 +154,7 @@ static void kf_project_lowrank(const kf_state_t *st, kf_work_t *ws, size_t k)
         for (size_t j = 0u; j < k; ++j) {
             c[j] = kf_dot_fd(st->v[r], ws->w[j], n);
         }
-        for (size_t i = 0u; i < k; ++i) {
-            for (size_t j = 0u; j < k; ++j) {
-                ws->m[i * k + j] += st->e[r] * c[i] * c[j];
-            }
-        }
+        kf_add_outer(ws, k, c, st->e[r]);
     }
 }
 
@@ -154,24 +172,14 @@ md_status_t kf_predict_scaled(kf_state_t *st, double q, double s2, kf_work_t *ws
         return MD_E_ARG;
     }
     size_t k = 0u;
-    double v[KF_DW_MAX];
-    for (size_t r = 0u; r < st->rank; ++r) {
-        for (size_t i = 0u; i < n; ++i) {
-            v[i] = (double)st->v[r][i];
-        }
-        kf_gs_append(ws, &k, v, n);
-    }
+    kf_span_lowrank(st, ws, &k);
     kf_gs_append(ws, &k, st->x, n);
     kf_project_lowrank(st, ws, k);
     double c[KF_SPAN_MAX];
     for (size_t j = 0u; j < k; ++j) {
         c[j] = kf_dot(ws->w[j], st->x, n);
     }
-    for (size_t i = 0u; i < k; ++i) {
-        for (size_t j = 0u; j < k; ++j) {
-            ws->m[i * k + j] += s2 * c[i] * c[j];
-        }
-    }
+    kf_add_outer(ws, k, c, s2);
     if (kf_rebuild(st, ws, k) != MD_OK) { /* fails before it writes st */
         return MD_E_NUMERIC;
     }
@@ -282,13 +290,7 @@ md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *m
     }
     /* eq. 4.17 as Λ' = Λ - P S⁻¹ Pᵀ, expressed in W = orth{v_i, rows of H}. */
     size_t k = 0u;
-    double tmp[KF_DW_MAX];
-    for (size_t q = 0u; q < st->rank; ++q) {
-        for (size_t i = 0u; i < n; ++i) {
-            tmp[i] = (double)st->v[q][i];
-        }
-        kf_gs_append(ws, &k, tmp, n);
-    }
+    kf_span_lowrank(st, ws, &k);
     for (size_t c = 0u; c < d; ++c) {
         kf_gs_append(ws, &k, &h[c * n], n);
     }
