@@ -71,7 +71,7 @@ static void dense_update(const double *h, const double *mu, const double *r)
         }
     }
     TEST_ASSERT_EQUAL_INT(MD_OK, linalg_spd_inverse(s, D, sinv, work, NULL));
-    linalg_matmul(p, sinv, k, DW, D, D);
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_matmul(p, sinv, k, DW, D, D));
     double nu[D];
     for (size_t c = 0u; c < D; ++c) {
         double acc = mu[c];

@@ -44,7 +44,7 @@ static void test_cholesky_known_factor(void)
     /* L = [[2,0,0],[1,3,0],[-1,2,1]] -> A = L L^T */
     const double l_true[9] = {2, 0, 0, 1, 3, 0, -1, 2, 1};
     double a[9];
-    linalg_matmul(l_true, (const double[9]){2, 1, -1, 0, 3, 2, 0, 0, 1}, a, 3, 3, 3);
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_matmul(l_true, (const double[9]){2, 1, -1, 0, 3, 2, 0, 0, 1}, a, 3, 3, 3));
     TEST_ASSERT_EQUAL_INT(MD_OK, linalg_cholesky(a, 3));
     for (int i = 0; i < 9; ++i) {
         TEST_ASSERT_DOUBLE_WITHIN(1e-12, l_true[i], a[i]);
@@ -62,7 +62,7 @@ static void test_solve_and_mahalanobis(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, linalg_cholesky(l, 4));
     const double x_true[4] = {1.0, -1.0, 2.0, 0.5};
     double b[4];
-    linalg_matmul(a, x_true, b, 4, 4, 1);
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_matmul(a, x_true, b, 4, 4, 1));
     TEST_ASSERT_EQUAL_INT(MD_OK, linalg_cholesky_solve(l, 4, b));
     for (int i = 0; i < 4; ++i) {
         TEST_ASSERT_DOUBLE_WITHIN(1e-12, x_true[i], b[i]);
@@ -87,7 +87,7 @@ static void test_spd_inverse_times_a_is_identity(void)
     double a[16], q[16], inv[16], work[16], prod[16], logdet = 0.0;
     make_spd4(lam, a, q);
     TEST_ASSERT_EQUAL_INT(MD_OK, linalg_spd_inverse(a, 4, inv, work, &logdet));
-    linalg_matmul(inv, a, prod, 4, 4, 4);
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_matmul(inv, a, prod, 4, 4, 4));
     for (int i = 0; i < 4; ++i) {
         for (int j = 0; j < 4; ++j) {
             TEST_ASSERT_DOUBLE_WITHIN(1e-10, (i == j) ? 1.0 : 0.0, prod[i * 4 + j]);
@@ -286,7 +286,7 @@ static void test_matmul_and_all_finite(void)
     const double a[6] = {1, 2, 3, 4, 5, 6};       /* 2x3 */
     const double b[6] = {7, 8, 9, 10, 11, 12};    /* 3x2 */
     double c[4];
-    linalg_matmul(a, b, c, 2, 3, 2);
+    TEST_ASSERT_EQUAL_INT(MD_OK, linalg_matmul(a, b, c, 2, 3, 2));
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 58.0, c[0]);
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 64.0, c[1]);
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 139.0, c[2]);
@@ -295,6 +295,11 @@ static void test_matmul_and_all_finite(void)
     const double bad[3] = {1.0, NAN, 0.0};
     TEST_ASSERT_FALSE(linalg_all_finite(bad, 3));
     TEST_ASSERT_FALSE(linalg_all_finite(NULL, 3));
+    /* A NULL operand is reported and leaves the product untouched. */
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_matmul(NULL, b, c, 2, 3, 2));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_matmul(a, NULL, c, 2, 3, 2));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, linalg_matmul(a, b, NULL, 2, 3, 2));
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 58.0, c[0]);
 }
 
 /* Entries near the ends of the double range: the convergence test must not

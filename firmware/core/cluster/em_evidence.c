@@ -251,9 +251,11 @@ static md_status_t em_comp_first(const em_shape_t *sh, size_t d, double lambda,
             sig_t[t][e] = (t + 1u < np) ? lambda * sh->dc[t][e] : sh->c[e];
         }
         double m[EM_D_MAX * EM_D_MAX];
-        linalg_matmul(cd->sigma_inv, sig_t[t], m, d, d, d);
+        if ((linalg_matmul(cd->sigma_inv, sig_t[t], m, d, d, d) != MD_OK) ||
+            (linalg_matmul(m, cd->sigma_inv, cd->n_t[t], d, d, d) != MD_OK)) {
+            return MD_E_ARG;
+        }
         cd->tr_m[t] = em_trace(m, d);
-        linalg_matmul(m, cd->sigma_inv, cd->n_t[t], d, d, d);
     }
     return MD_OK;
 }
@@ -282,11 +284,15 @@ static md_status_t em_comp_prepare(const em_params_t *p, size_t g, em_comp_deriv
             double b[EM_D_MAX * EM_D_MAX];
             double m[EM_D_MAX * EM_D_MAX];
             em_sigma_ts(&sh, d, p->lambda, t, s, sts);
-            linalg_matmul(cd->n_t[s], sig_t[t], m, d, d, d);      /* Σ^{-1}Σ_sΣ^{-1}Σ_t */
-            linalg_matmul(m, cd->sigma_inv, a, d, d, d);          /* ... Σ^{-1} */
-            linalg_matmul(cd->sigma_inv, sts, b, d, d, d);        /* Σ^{-1}Σ_ts */
+            if ((linalg_matmul(cd->n_t[s], sig_t[t], m, d, d, d) != MD_OK) || /* Σ^{-1}Σ_sΣ^{-1}Σ_t */
+                (linalg_matmul(m, cd->sigma_inv, a, d, d, d) != MD_OK) ||     /* ... Σ^{-1} */
+                (linalg_matmul(cd->sigma_inv, sts, b, d, d, d) != MD_OK)) {   /* Σ^{-1}Σ_ts */
+                return MD_E_ARG;
+            }
             cd->k_ts[t][s] = 0.5 * (em_trace(m, d) - em_trace(b, d));
-            linalg_matmul(b, cd->sigma_inv, m, d, d, d);          /* Σ^{-1}Σ_tsΣ^{-1} */
+            if (linalg_matmul(b, cd->sigma_inv, m, d, d, d) != MD_OK) {       /* Σ^{-1}Σ_tsΣ^{-1} */
+                return MD_E_ARG;
+            }
             for (size_t r = 0u; r < d; ++r) {
                 for (size_t c = 0u; c < d; ++c) {
                     cd->q_ts[t][s][r * d + c] =

@@ -3,8 +3,7 @@
 ///
 /// Every loop is bounded by n <= LINALG_MAX_N or by the caller's sweep bound
 /// (linalg_matmul: by the caller's sizes). Routines that return md_status_t
-/// report misuse; linalg_cholesky_logdet returns NaN for it; linalg_matmul
-/// writes nothing.
+/// report misuse; linalg_cholesky_logdet returns NaN for it.
 #include "common/linalg.h"
 
 #include <math.h>
@@ -351,10 +350,10 @@ md_status_t linalg_sym_eigen(double *a, size_t n, double *eigvals, double *eigve
     return converged ? MD_OK : MD_E_NOCONVERGE;
 }
 
-void linalg_matmul(const double *a, const double *b, double *c, size_t r, size_t k, size_t cols)
+md_status_t linalg_matmul(const double *a, const double *b, double *c, size_t r, size_t k, size_t cols)
 {
     if ((a == NULL) || (b == NULL) || (c == NULL)) {
-        return;
+        return MD_E_ARG;
     }
     for (size_t i = 0u; i < r; ++i) {
         for (size_t j = 0u; j < cols; ++j) {
@@ -365,4 +364,5 @@ void linalg_matmul(const double *a, const double *b, double *c, size_t r, size_t
             c[i * cols + j] = s;
         }
     }
+    return MD_OK;
 }

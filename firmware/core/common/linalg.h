@@ -51,9 +51,9 @@ md_status_t linalg_mahalanobis2(const double *l, size_t n, const double *x, cons
 /// MD_E_NOCONVERGE if off-diagonal mass is not negligible after max_sweeps.
 md_status_t linalg_sym_eigen(double *a, size_t n, double *eigvals, double *eigvecs, unsigned max_sweeps);
 
-/// C = A B for row-major A (r×k) and B (k×c). Writes nothing if a pointer is
-/// NULL; the loops are bounded by the caller's sizes.
-void linalg_matmul(const double *a, const double *b, double *c, size_t r, size_t k, size_t cols);
+/// C = A B for row-major A (r×k) and B (k×c); the loops are bounded by the
+/// caller's sizes. MD_E_ARG, and nothing written, if a pointer is NULL.
+md_status_t linalg_matmul(const double *a, const double *b, double *c, size_t r, size_t k, size_t cols);
 
 /// True if every one of the n values is finite.
 int linalg_all_finite(const double *v, size_t n);

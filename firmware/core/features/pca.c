@@ -244,7 +244,9 @@ md_status_t pca_project(const pca_basis_t *basis, const double *x, double *y)
         (basis->d_w > MD_WAVE_LEN_MAX)) {
         return MD_E_ARG;
     }
-    linalg_matmul(basis->b, x, y, basis->d, basis->d_w, 1u);
+    if (linalg_matmul(basis->b, x, y, basis->d, basis->d_w, 1u) != MD_OK) {
+        return MD_E_ARG;
+    }
     return linalg_all_finite(y, basis->d) ? MD_OK : MD_E_NUMERIC;
 }
 
