@@ -22,10 +22,12 @@ MISRA rules listed in tools/analysis/misra-deviations.txt are not enforced.
 import argparse
 import collections
 import concurrent.futures
+import hashlib
 import json
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -196,6 +198,39 @@ def misra_deviated(f, dev):
 
 # ---- tools ------------------------------------------------------------------------
 
+def source_digest():
+    """Hash of every C source and header byte under firmware/ and common/."""
+    h = hashlib.sha256()
+    for top in ("firmware", "common"):
+        for d, dirs, files in sorted(os.walk(os.path.join(ROOT, top))):
+            dirs.sort()
+            for name in sorted(files):
+                if name.endswith((".c", ".h")):
+                    path = os.path.join(d, name)
+                    h.update(path.encode())
+                    with open(path, "rb") as f:
+                        h.update(f.read())
+    return h.hexdigest()
+
+
+def fresh_cppcheck_cache(bdir):
+    """cppcheck's build dir skips a file whose tokens did not change, and then
+    reports its old line numbers: a whitespace-only edit (a reformat) would
+    shift every finding. The cache is kept only while no source byte changed."""
+    stamp = os.path.join(bdir, "sources.sha256")
+    digest = source_digest()
+    try:
+        with open(stamp) as f:
+            same = f.read().strip() == digest
+    except OSError:
+        same = False
+    if not same:
+        shutil.rmtree(bdir, ignore_errors=True)
+        os.makedirs(bdir)
+        with open(stamp, "w") as f:
+            f.write(digest + "\n")
+
+
 def run_cppcheck(units, work, jobs):
     out = []
     tmpl = "{file}\t{line}\t{severity}\t{id}\t{message}"
@@ -207,7 +242,7 @@ def run_cppcheck(units, work, jobs):
         db = os.path.join(work, f"cppcheck-{kind}.json")
         json.dump(sel, open(db, "w"), indent=1)
         bdir = os.path.join(work, f"cppcheck-{kind}-cache")
-        os.makedirs(bdir, exist_ok=True)
+        fresh_cppcheck_cache(bdir)
         cmd = ["cppcheck", f"--project={db}", "--std=c11", "--inline-suppr", "--quiet",
                f"-j{jobs}", f"--cppcheck-build-dir={bdir}", f"--template={tmpl}",
                "--suppress=missingIncludeSystem", "--suppress=unmatchedSuppression",
