@@ -6,6 +6,7 @@
 
 #include <math.h>
 #include <string.h>
+#include <stddef.h>
 
 #include "md_can.h"
 
@@ -65,11 +66,7 @@ static const rx_rule_t RX_RULES[] = {
 #define RX_RULE_COUNT (sizeof(RX_RULES) / sizeof(RX_RULES[0]))
 
 /// Outcome of a frame handler.
-typedef enum {
-    RX_OK = 0,
-    RX_BAD_RANGE,
-    RX_BAD_SEQ
-} rx_result_t;
+typedef enum { RX_OK = 0, RX_BAD_RANGE, RX_BAD_SEQ } rx_result_t;
 
 static const rx_rule_t *find_rule(uint32_t id)
 {
@@ -154,8 +151,7 @@ static md_status_t send_emcy(md_node_t *node, md_emcy_code_t code, uint8_t elect
     m.error_register = error_register(node, code == MD_EMCY_PROTOCOL);
     m.electrode = electrode;
     m.info = info;
-    const md_status_t st =
-        send_frame(node, MD_CAN_EMCY_CTRL_FRAME_ID, buf, md_can_emcy_ctrl_pack(buf, &m, sizeof buf));
+    const md_status_t st = send_frame(node, MD_CAN_EMCY_CTRL_FRAME_ID, buf, md_can_emcy_ctrl_pack(buf, &m, sizeof buf));
     if (st == MD_OK) {
         node->counters.emcy_sent++;
     }
@@ -208,7 +204,7 @@ static md_status_t halt_all(md_node_t *node)
     md_status_t result = MD_OK;
     for (uint8_t e = 0u; e < (uint8_t)MD_ELECTRODES; ++e) {
         if (send_act_cmd(node, e, MD_ACT_CMD_HALT, MD_ACT_DIR_ADVANCE, 0u, 0u) == MD_OK) {
-            node->halt_pending &= (uint8_t)~(1u << e);
+            node->halt_pending &= (uint8_t) ~(1u << e);
         } else {
             result = MD_E_IO;
         }
@@ -224,7 +220,7 @@ static md_status_t retry_halts(md_node_t *node)
             continue;
         }
         if (send_act_cmd(node, e, MD_ACT_CMD_HALT, MD_ACT_DIR_ADVANCE, 0u, 0u) == MD_OK) {
-            node->halt_pending &= (uint8_t)~(1u << e);
+            node->halt_pending &= (uint8_t) ~(1u << e);
         } else {
             result = MD_E_IO;
         }
@@ -305,8 +301,7 @@ static md_status_t do_boot(md_node_t *node, uint64_t now_us)
     const md_status_t st = send_heartbeat(node, now_us);
     const bool auto_start = md_params_get_u32(&node->params, MD_P_AUTO_START) != 0u;
     enter_state(node, (auto_start && !node->estop_latched) ? MD_NODE_STATE_OPERATIONAL : MD_NODE_STATE_PREOP);
-    node->next_heartbeat_us =
-        now_us + (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_PERIOD_MS) * US_PER_MS;
+    node->next_heartbeat_us = now_us + (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_PERIOD_MS) * US_PER_MS;
     return st;
 }
 
@@ -348,12 +343,8 @@ static void apply_nmt(md_node_t *node, uint8_t command)
             enter_state(node, MD_NODE_STATE_OPERATIONAL);
         }
         break;
-    case MD_NMT_STOP:
-        enter_state(node, MD_NODE_STATE_STOPPED);
-        break;
-    case MD_NMT_PREOP:
-        enter_state(node, MD_NODE_STATE_PREOP);
-        break;
+    case MD_NMT_STOP: enter_state(node, MD_NODE_STATE_STOPPED); break;
+    case MD_NMT_PREOP: enter_state(node, MD_NODE_STATE_PREOP); break;
     case MD_NMT_RESET_NODE:
         enter_state(node, MD_NODE_STATE_BOOT);
         reset_application(node);
@@ -363,8 +354,7 @@ static void apply_nmt(md_node_t *node, uint8_t command)
          * an e-stop), so motion needs an explicit NMT start. */
         node->estop_latched = false;
         break;
-    default:
-        break; /* unreachable: handle_nmt validated the command */
+    default: break; /* unreachable: handle_nmt validated the command */
     }
 }
 
@@ -406,8 +396,7 @@ static rx_result_t handle_nmt(md_node_t *node, const md_frame_t *f)
 static rx_result_t handle_sim_clock(md_node_t *node, const md_frame_t *f)
 {
     struct md_can_sim_clock_t m;
-    if (md_can_sim_clock_unpack(&m, f->data, f->len) != 0 ||
-        !md_can_sim_clock_sim_time_us_is_in_range(m.sim_time_us)) {
+    if (md_can_sim_clock_unpack(&m, f->data, f->len) != 0 || !md_can_sim_clock_sim_time_us_is_in_range(m.sim_time_us)) {
         return RX_BAD_RANGE;
     }
     node->sim_time_us = m.sim_time_us;
@@ -429,7 +418,8 @@ static rx_result_t handle_act_status(md_node_t *node, const md_frame_t *f)
 {
     struct md_can_act_status_t m;
     if (md_can_act_status_unpack(&m, f->data, f->len) != 0 || m.electrode >= MD_ELECTRODES ||
-        m.state > (uint8_t)MD_ACT_FAULT || m.end_stops > 3u || !md_can_act_status_steps_done_is_in_range(m.steps_done) ||
+        m.state > (uint8_t)MD_ACT_FAULT || m.end_stops > 3u ||
+        !md_can_act_status_steps_done_is_in_range(m.steps_done) ||
         !md_can_act_status_steps_remaining_is_in_range(m.steps_remaining)) {
         return RX_BAD_RANGE;
     }
@@ -496,8 +486,7 @@ static rx_result_t handle_rec_data(md_node_t *node, const md_frame_t *f)
 static rx_result_t handle_rec_end(md_node_t *node, const md_frame_t *f)
 {
     struct md_can_rec_end_t m;
-    if (md_can_rec_end_unpack(&m, f->data, f->len) != 0 || m.electrode >= MD_ELECTRODES ||
-        m.status > MD_REC_OVERFLOW) {
+    if (md_can_rec_end_unpack(&m, f->data, f->len) != 0 || m.electrode >= MD_ELECTRODES || m.status > MD_REC_OVERFLOW) {
         return RX_BAD_RANGE;
     }
     /* Seq counts frames of one interval from 0 (DBC comment on REC_DATA). */
@@ -569,47 +558,68 @@ static rx_result_t handle_heartbeat(md_node_t *node, const md_frame_t *f, uint64
 /* Parameters                                                          */
 /* ------------------------------------------------------------------ */
 
+/* The diagnostic counters readable as parameters, by their place in
+ * md_node_counters_t (all uint32_t). */
+typedef struct {
+    md_param_id_t id;
+    size_t offset;
+} node_counter_param_t;
+
+static const node_counter_param_t NODE_COUNTER_PARAMS[] = {
+    {MD_P_RX_FRAMES, offsetof(md_node_counters_t, rx_frames)},
+    {MD_P_RX_MALFORMED, offsetof(md_node_counters_t, rx_malformed)},
+    {MD_P_RX_UNKNOWN_ID, offsetof(md_node_counters_t, rx_unknown_id)},
+    {MD_P_RX_BAD_LENGTH, offsetof(md_node_counters_t, rx_bad_length)},
+    {MD_P_RX_BAD_RANGE, offsetof(md_node_counters_t, rx_bad_range)},
+    {MD_P_RX_BAD_SEQUENCE, offsetof(md_node_counters_t, rx_bad_sequence)},
+    {MD_P_RX_ID_CONFLICT, offsetof(md_node_counters_t, rx_id_conflict)},
+    {MD_P_TX_FRAMES, offsetof(md_node_counters_t, tx_frames)},
+    {MD_P_TX_FAILURES, offsetof(md_node_counters_t, tx_failures)},
+    {MD_P_EMCY_SENT, offsetof(md_node_counters_t, emcy_sent)},
+    {MD_P_HEARTBEAT_LOST, offsetof(md_node_counters_t, heartbeat_lost)},
+    {MD_P_NODE_BACK, offsetof(md_node_counters_t, node_back)},
+    {MD_P_ESTOP_EVENTS, offsetof(md_node_counters_t, estop_events)},
+    {MD_P_NMT_REFUSED, offsetof(md_node_counters_t, nmt_refused)},
+    {MD_P_CYCLES_DONE, offsetof(md_node_counters_t, cycles_done)},
+    {MD_P_CYCLES_SKIPPED, offsetof(md_node_counters_t, cycles_skipped)},
+    {MD_P_RECORDINGS_FAILED, offsetof(md_node_counters_t, rec_failed)},
+    {MD_P_MOVES_FAILED, offsetof(md_node_counters_t, moves_failed)},
+};
+_Static_assert(sizeof(md_node_counters_t) ==
+                   sizeof(NODE_COUNTER_PARAMS) / sizeof(NODE_COUNTER_PARAMS[0]) * sizeof(uint32_t),
+               "every counter is readable as a parameter");
+
+/* A counter's value, or false if `id` names no counter. */
+static bool node_counter_read(const md_node_counters_t *c, md_param_id_t id, uint32_t *value)
+{
+    const unsigned char *bytes = (const unsigned char *)c;
+    for (size_t i = 0u; i < sizeof(NODE_COUNTER_PARAMS) / sizeof(NODE_COUNTER_PARAMS[0]); ++i) {
+        if (NODE_COUNTER_PARAMS[i].id == id) {
+            /* cppcheck-suppress misra-c2012-21.15 ; deliberate: a uint32_t member from its bytes at its offsetof */
+            (void)memcpy(value, &bytes[NODE_COUNTER_PARAMS[i].offset], sizeof *value);
+            return true;
+        }
+    }
+    return false;
+}
+
+/* Live values are read from the node; every other parameter is the value set. */
 double md_node_param_read(const md_node_t *node, md_param_id_t id, uint64_t now_us)
 {
-    const md_node_counters_t *c = &node->counters;
-    switch (id) {
-    case MD_P_NODE_STATE: return (double)node->state;
-    case MD_P_ESTOP_LATCHED: return node->estop_latched ? 1.0 : 0.0;
-    case MD_P_UPTIME_S: return (double)((now_us - node->boot_us) / US_PER_S);
-    case MD_P_RX_FRAMES: return (double)c->rx_frames;
-    case MD_P_RX_MALFORMED: return (double)c->rx_malformed;
-    case MD_P_RX_UNKNOWN_ID: return (double)c->rx_unknown_id;
-    case MD_P_RX_BAD_LENGTH: return (double)c->rx_bad_length;
-    case MD_P_RX_BAD_RANGE: return (double)c->rx_bad_range;
-    case MD_P_RX_BAD_SEQUENCE: return (double)c->rx_bad_sequence;
-    case MD_P_RX_ID_CONFLICT: return (double)c->rx_id_conflict;
-    case MD_P_TX_FRAMES: return (double)c->tx_frames;
-    case MD_P_TX_FAILURES: return (double)c->tx_failures;
-    case MD_P_EMCY_SENT: return (double)c->emcy_sent;
-    case MD_P_HEARTBEAT_LOST: return (double)c->heartbeat_lost;
-    case MD_P_NODE_BACK: return (double)c->node_back;
-    case MD_P_ESTOP_EVENTS: return (double)c->estop_events;
-    case MD_P_NMT_REFUSED: return (double)c->nmt_refused;
-    case MD_P_CYCLES_DONE: return (double)c->cycles_done;
-    case MD_P_CYCLES_SKIPPED: return (double)c->cycles_skipped;
-    case MD_P_RECORDINGS_FAILED: return (double)c->rec_failed;
-    case MD_P_MOVES_FAILED: return (double)c->moves_failed;
-    /* tunables: the value set */
-    case MD_P_EMCY_INHIBIT_MS: case MD_P_HEARTBEAT_TIMEOUT_MS: case MD_P_HEARTBEAT_PERIOD_MS: case MD_P_MONITOR_ACT:
-    case MD_P_MONITOR_HALL: case MD_P_MONITOR_FE: case MD_P_AUTO_START: case MD_P_INTERVAL_S: case MD_P_STEP_MAX_UM:
-    case MD_P_STEP_SEARCH_UM: case MD_P_STEP_SAMPLE_UM: case MD_P_STEP_RESAMPLE_UM: case MD_P_DEPTH_MIN_UM:
-    case MD_P_DEPTH_MAX_UM: case MD_P_SETTLE_MS: case MD_P_MIN_RATE_HZ: case MD_P_SERVO_TOL_UM:
-    case MD_P_SERVO_MAX_ITER: case MD_P_SERVO_AVG_N: case MD_P_SERVO_STEP_NM: case MD_P_SERVO_RATE_HZ:
-    case MD_P_SFSM_GAMMA1: case MD_P_SFSM_GAMMA2: case MD_P_SFSM_GAMMA3: case MD_P_SFSM_WAIT_R:
-    case MD_P_SFSM_LOST_CYCLES: case MD_P_SFSM_SNR_DROP: case MD_P_SC_TOL_UM: case MD_P_SFSM_SNR_MIN:
-    case MD_P_SFSM_SEARCH_SPAN_UM:
-    case MD_P_MHTC_Q_UV: case MD_P_TRACKER: case MD_P_MHTC_UNIMODAL_RATIO: case MD_P_GUARD_ENABLE: case MD_P_GUARD_GROWTH_STOP:
-    case MD_P_GUARD_AMP_SLOW: case MD_P_GUARD_AMP_STOP: case MD_P_GUARD_STEP_NEAR_UM: case MD_P_GUARD_RETRACT_UM: case MD_P_GUARD_CLIMB_FRAC:
-        return md_params_get(&node->params, id);
-    case MD_P_COUNT:
-    default:
-        return 0.0;
+    uint32_t counter = 0u;
+    if (id == MD_P_NODE_STATE) {
+        return (double)node->state;
     }
+    if (id == MD_P_ESTOP_LATCHED) {
+        return node->estop_latched ? 1.0 : 0.0;
+    }
+    if (id == MD_P_UPTIME_S) {
+        return (double)((now_us - node->boot_us) / US_PER_S);
+    }
+    if (node_counter_read(&node->counters, id, &counter)) {
+        return (double)counter;
+    }
+    return md_params_get(&node->params, id);
 }
 
 /* State rules of a set (MD_PARAM_REFUSED); value rules are md_params_set's. */
@@ -628,8 +638,8 @@ static bool set_refused(const md_node_t *node, const md_param_def_t *d)
 static void after_set(md_node_t *node, md_param_id_t id, uint64_t now_us)
 {
     if (id == MD_P_HEARTBEAT_PERIOD_MS && !node->boot_pending) {
-        node->next_heartbeat_us =
-            now_us + (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_PERIOD_MS) * US_PER_MS;
+        node->next_heartbeat_us = now_us +
+                                  (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_PERIOD_MS) * US_PER_MS;
     }
     /* Disabling supervision forgets the node (and lifts its motion inhibit). */
     const uint8_t node_id = (id == MD_P_MONITOR_ACT)    ? (uint8_t)MD_NODE_ACT
@@ -661,7 +671,8 @@ static md_param_status_t param_set(md_node_t *node, uint16_t index, double value
 static rx_result_t handle_param_req(md_node_t *node, const md_frame_t *f, uint64_t now_us)
 {
     struct md_can_param_req_ctrl_t req;
-    if (md_can_param_req_ctrl_unpack(&req, f->data, f->len) != 0 || !md_can_param_req_ctrl_index_is_in_range(req.index)) {
+    if (md_can_param_req_ctrl_unpack(&req, f->data, f->len) != 0 ||
+        !md_can_param_req_ctrl_index_is_in_range(req.index)) {
         return RX_BAD_RANGE;
     }
     /* A NaN/inf Value is not a malformed frame but a set out of range: it is
@@ -772,8 +783,7 @@ md_status_t md_node_on_frame(md_node_t *node, const md_frame_t *frame, uint64_t 
 
 static void supervise(md_node_t *node, uint64_t now_us)
 {
-    const uint64_t timeout_us =
-        (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_TIMEOUT_MS) * US_PER_MS;
+    const uint64_t timeout_us = (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_TIMEOUT_MS) * US_PER_MS;
     for (size_t i = 0u; i < MD_NODE_MONITORED; ++i) {
         md_node_monitor_t *mon = &node->monitor[i];
         if (!mon->seen || mon->lost || now_us <= mon->last_us || now_us - mon->last_us <= timeout_us) {
@@ -797,8 +807,7 @@ md_status_t md_node_poll(md_node_t *node, uint64_t now_us)
     }
     if (now_us >= node->next_heartbeat_us) {
         (void)send_heartbeat(node, now_us);
-        const uint64_t period_us =
-            (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_PERIOD_MS) * US_PER_MS;
+        const uint64_t period_us = (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_PERIOD_MS) * US_PER_MS;
         node->next_heartbeat_us += period_us;
         if (node->next_heartbeat_us <= now_us) {
             node->next_heartbeat_us = now_us + period_us; /* late poll: no burst of catch-up heartbeats */
@@ -815,8 +824,7 @@ uint64_t md_node_next_deadline_us(const md_node_t *node, uint64_t now_us)
         return now_us;
     }
     uint64_t deadline = node->next_heartbeat_us;
-    const uint64_t timeout_us =
-        (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_TIMEOUT_MS) * US_PER_MS;
+    const uint64_t timeout_us = (uint64_t)md_params_get_u32(&node->params, MD_P_HEARTBEAT_TIMEOUT_MS) * US_PER_MS;
     for (size_t i = 0u; i < MD_NODE_MONITORED; ++i) {
         const md_node_monitor_t *mon = &node->monitor[i];
         if (mon->seen && !mon->lost && mon->last_us + timeout_us + 1u < deadline) {
