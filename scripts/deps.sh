@@ -14,8 +14,8 @@
 MD_DEPS_build=(cmake ninja-build gcc make pkg-config python3-venv libyaml-dev libcjson-dev
                liblcm-dev liblcm-bin libglib2.0-dev)
 MD_DEPS_WHY_build="build the firmware, the simulator and the host tools (CMake, Ninja, gcc, libyaml, cJSON, LCM) and make the Python venv"
-MD_DEPS_host_tests=(cppcheck clang-tidy iproute2)
-MD_DEPS_WHY_host_tests="run the static-analysis tests (cppcheck, clang-tidy) and the socket tests in a private network namespace (iproute2)"
+MD_DEPS_host_tests=(cppcheck clang-tidy clang-format iproute2)
+MD_DEPS_WHY_host_tests="run the static-analysis and layout tests (cppcheck, clang-tidy, clang-format) and the socket tests in a private network namespace (iproute2)"
 MD_DEPS_fuzz=(clang libclang-rt-14-dev)
 MD_DEPS_WHY_fuzz="build the libFuzzer targets (clang)"
 MD_DEPS_target=(gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm)

@@ -42,7 +42,10 @@ static int closed_fd(const md_bus_t *bus)
     return -1;
 }
 
-static void closed_close(md_bus_t *bus) { (void)bus; }
+static void closed_close(md_bus_t *bus)
+{
+    (void)bus;
+}
 
 const md_bus_ops_t md_bus_closed_ops = {closed_send, closed_receive, closed_fd, closed_close};
 
@@ -122,8 +125,7 @@ static void note_drops(md_bus_t *bus, uint32_t total)
 void md_bus_account_drops(md_bus_t *bus, struct msghdr *msg)
 {
     for (struct cmsghdr *c = CMSG_FIRSTHDR(msg); c != NULL; c = CMSG_NXTHDR(msg, c)) {
-        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL &&
-            c->cmsg_len >= CMSG_LEN(sizeof(uint32_t))) {
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL && c->cmsg_len >= CMSG_LEN(sizeof(uint32_t))) {
             uint32_t total;
             memcpy(&total, CMSG_DATA(c), sizeof total);
             note_drops(bus, total);
@@ -170,7 +172,10 @@ int md_bus_stats_format(const md_bus_stats_t *st, char *out, size_t len)
                     (unsigned long long)st->tx_flow_timeouts);
 }
 
-int md_bus_sock_fd(const md_bus_t *bus) { return bus->sock.fd; }
+int md_bus_sock_fd(const md_bus_t *bus)
+{
+    return bus->sock.fd;
+}
 
 void md_bus_sock_close(md_bus_t *bus)
 {
@@ -304,8 +309,7 @@ int md_bus_open(md_bus_t *bus, const char *spec, char *why, size_t why_len)
     }
     if (!ifname_ok(spec)) {
         md_bus_why(why, why_len,
-                   "unknown bus spec '%.40s' (use an interface name, udp, udp:<port>, inproc:<name> or auto)",
-                   spec);
+                   "unknown bus spec '%.40s' (use an interface name, udp, udp:<port>, inproc:<name> or auto)", spec);
         return -EINVAL;
     }
     const int rc = md_bus_open_socketcan(bus, spec, why, why_len);

@@ -44,45 +44,45 @@
 #define MD_BUS_INPROC_NAME_MAX 24u
 
 typedef enum {
-    MD_BUS_SOCKETCAN = 1,   ///< raw CAN FD socket on a named interface (vcan0, can0)
-    MD_BUS_UDP = 2,         ///< UDP multicast on loopback (hosts without AF_CAN)
-    MD_BUS_INPROC = 3       ///< nodes in one process (tests, batch evaluation)
+    MD_BUS_SOCKETCAN = 1,  ///< raw CAN FD socket on a named interface (vcan0, can0)
+    MD_BUS_UDP = 2,        ///< UDP multicast on loopback (hosts without AF_CAN)
+    MD_BUS_INPROC = 3      ///< nodes in one process (tests, batch evaluation)
 } md_bus_kind_t;
 
 /// Counters every bus keeps; nothing is dropped without a count.
 typedef struct {
     uint64_t tx_frames, rx_frames;
-    uint64_t tx_errors;        ///< send failed (reported to the caller too)
-    uint64_t rx_malformed;     ///< datagram/frame that failed validation (or cannot be
-                               ///< represented: SocketCAN RTR/error frames)
-    uint64_t rx_overflow;      ///< frames lost because this endpoint's queue was full:
-                               ///< in-process ring, or the kernel socket buffer
-                               ///< (SO_RXQ_OVFL) for SocketCAN and UDP (UDP: less our own
-                               ///< echoes, which its socket filter drops)
-    uint64_t tx_flow_waits;    ///< UDP: sends that waited for room at a receiver
-    uint64_t tx_flow_timeouts; ///< UDP: waits that gave up after MD_BUS_UDP_FLOW_WAIT_US
-                               ///< (that receiver is then ignored until it reads again;
-                               ///< whatever it loses counts in its rx_overflow)
+    uint64_t tx_errors;         ///< send failed (reported to the caller too)
+    uint64_t rx_malformed;      ///< datagram/frame that failed validation (or cannot be
+                                ///< represented: SocketCAN RTR/error frames)
+    uint64_t rx_overflow;       ///< frames lost because this endpoint's queue was full:
+                                ///< in-process ring, or the kernel socket buffer
+                                ///< (SO_RXQ_OVFL) for SocketCAN and UDP (UDP: less our own
+                                ///< echoes, which its socket filter drops)
+    uint64_t tx_flow_waits;     ///< UDP: sends that waited for room at a receiver
+    uint64_t tx_flow_timeouts;  ///< UDP: waits that gave up after MD_BUS_UDP_FLOW_WAIT_US
+                                ///< (that receiver is then ignored until it reads again;
+                                ///< whatever it loses counts in its rx_overflow)
 } md_bus_stats_t;
 
 /// State of the socket buses (SocketCAN, UDP), kept inside md_bus_t so that no
 /// bus needs the heap or a global pool. Private to common/bus.
 typedef struct {
-    int fd;                    ///< the socket; -1 when closed or not a socket bus
-    uint32_t sender_id;        ///< UDP: random non-zero id stamped on our datagrams
-    uint32_t tx_seq;           ///< UDP: sequence number of our next datagram
-    uint32_t kernel_drops;     ///< last cumulative SO_RXQ_OVFL count seen
-    uint64_t kernel_total;     ///< the kernel's drop count since open, unwrapped
-    uint8_t echo_filter;       ///< UDP: our echoes are dropped by a socket filter, and
-                               ///< so counted in kernel_total (one per datagram sent)
-    uint16_t port;             ///< UDP: the group's port
-    uint8_t fd_capable;        ///< SocketCAN: interface MTU allows CAN FD frames
-    uint8_t flow;              ///< UDP: flow control works (sock_diag answered at open)
-    int rcvbuf;                ///< receive buffer the kernel granted (SO_RCVBUF read back), bytes
-    int diag_fd;               ///< UDP: NETLINK_SOCK_DIAG socket of the flow control, or -1
-    uint64_t inode;            ///< UDP: our socket's inode (to tell it apart in sock_diag)
-    uint32_t credit;           ///< UDP: frames we may send before we look at the receivers again
-    int64_t flow_wait_us;      ///< UDP: longest flow-control wait (0: no flow control)
+    int fd;                                    ///< the socket; -1 when closed or not a socket bus
+    uint32_t sender_id;                        ///< UDP: random non-zero id stamped on our datagrams
+    uint32_t tx_seq;                           ///< UDP: sequence number of our next datagram
+    uint32_t kernel_drops;                     ///< last cumulative SO_RXQ_OVFL count seen
+    uint64_t kernel_total;                     ///< the kernel's drop count since open, unwrapped
+    uint8_t echo_filter;                       ///< UDP: our echoes are dropped by a socket filter, and
+                                               ///< so counted in kernel_total (one per datagram sent)
+    uint16_t port;                             ///< UDP: the group's port
+    uint8_t fd_capable;                        ///< SocketCAN: interface MTU allows CAN FD frames
+    uint8_t flow;                              ///< UDP: flow control works (sock_diag answered at open)
+    int rcvbuf;                                ///< receive buffer the kernel granted (SO_RCVBUF read back), bytes
+    int diag_fd;                               ///< UDP: NETLINK_SOCK_DIAG socket of the flow control, or -1
+    uint64_t inode;                            ///< UDP: our socket's inode (to tell it apart in sock_diag)
+    uint32_t credit;                           ///< UDP: frames we may send before we look at the receivers again
+    int64_t flow_wait_us;                      ///< UDP: longest flow-control wait (0: no flow control)
     uint64_t stalled[MD_BUS_UDP_STALLED_MAX];  ///< UDP: inodes of receivers marked stalled
     uint32_t held_head, held_count;            ///< UDP: ring of frames read while sending
     md_frame_t held[MD_BUS_UDP_HELD_LEN];
@@ -117,9 +117,9 @@ struct md_bus {
     const md_bus_ops_t *ops;
     md_bus_kind_t kind;
     md_bus_stats_t stats;
-    char name[32];             ///< "vcan0", "udp:239.71.0.1:57731", "inproc:<n>"
-    void *impl;                ///< transport's private state (&sock, or a static inproc slot)
-    md_bus_sock_t sock;        ///< socket buses' state (see md_bus_sock_t)
+    char name[32];       ///< "vcan0", "udp:239.71.0.1:57731", "inproc:<n>"
+    void *impl;          ///< transport's private state (&sock, or a static inproc slot)
+    md_bus_sock_t sock;  ///< socket buses' state (see md_bus_sock_t)
 };
 
 /// Opens a bus by spec: "vcan0"/"can0"/any interface name (SocketCAN),
@@ -134,12 +134,18 @@ struct md_bus {
 /// closed (operations return -EBADF). O(1) except the in-process name lookup.
 int md_bus_open(md_bus_t *bus, const char *spec, char *why, size_t why_len);
 
-static inline int md_bus_send(md_bus_t *bus, const md_frame_t *f) { return bus->ops->send(bus, f); }
+static inline int md_bus_send(md_bus_t *bus, const md_frame_t *f)
+{
+    return bus->ops->send(bus, f);
+}
 static inline int md_bus_receive(md_bus_t *bus, md_frame_t *f, int64_t timeout_us)
 {
     return bus->ops->receive(bus, f, timeout_us);
 }
-static inline int md_bus_fd(const md_bus_t *bus) { return bus->ops->fd(bus); }
+static inline int md_bus_fd(const md_bus_t *bus)
+{
+    return bus->ops->fd(bus);
+}
 
 /// Writes the endpoint's counters as one line (no newline) that
 /// microdrive-session reads back from the logs of its processes:
@@ -153,6 +159,9 @@ int md_bus_stats_format(const md_bus_stats_t *st, char *out, size_t len);
 /// not UDP or its flow control is unavailable (then `bus->sock.flow` is 0),
 /// -EINVAL for a negative wait.
 int md_bus_udp_set_flow_wait(md_bus_t *bus, int64_t wait_us);
-static inline void md_bus_close(md_bus_t *bus) { bus->ops->close(bus); }
+static inline void md_bus_close(md_bus_t *bus)
+{
+    bus->ops->close(bus);
+}
 
 #endif

@@ -28,7 +28,10 @@ static uint64_t rng_next(uint64_t *s)
     return x * 0x2545F4914F6CDD1Dull;
 }
 
-static double rng_uniform(uint64_t *s) { return (double)(rng_next(s) >> 11) * 0x1.0p-53; }
+static double rng_uniform(uint64_t *s)
+{
+    return (double)(rng_next(s) >> 11) * 0x1.0p-53;
+}
 
 void md_bus_fault_default_params(md_bus_fault_params_t *p)
 {
@@ -75,7 +78,7 @@ static int emit(md_bus_fault_t *f, int dir, const md_frame_t *fr)
         f->rx_ready[f->rx_ready_n++] = *fr;
         return 0;
     }
-    f->bus.stats.rx_overflow++;   /* cannot happen: at most hold + 2 due at once */
+    f->bus.stats.rx_overflow++; /* cannot happen: at most hold + 2 due at once */
     return 0;
 }
 
@@ -116,22 +119,16 @@ static bool hold(md_bus_fault_t *f, int dir, const md_frame_t *fr, uint64_t wait
 static int apply(md_bus_fault_t *f, int dir, md_frame_t *fr, md_bus_fault_kind_t k, uint64_t bit)
 {
     switch (k) {
-    case MD_BUS_FAULT_LOSS:
-        return 0;
-    case MD_BUS_FAULT_CORRUPT:
-        fr->data[(bit / 8u) % fr->len] ^= (uint8_t)(1u << (bit % 8u));
-        return emit(f, dir, fr);
+    case MD_BUS_FAULT_LOSS: return 0;
+    case MD_BUS_FAULT_CORRUPT: fr->data[(bit / 8u) % fr->len] ^= (uint8_t)(1u << (bit % 8u)); return emit(f, dir, fr);
     case MD_BUS_FAULT_DUP: {
         const int rc = emit(f, dir, fr);
         return (rc == 0) ? emit(f, dir, fr) : rc;
     }
-    case MD_BUS_FAULT_DELAY:
-        return hold(f, dir, fr, f->p.delay_frames) ? 0 : emit(f, dir, fr);
-    case MD_BUS_FAULT_REORDER:
-        return hold(f, dir, fr, 1u) ? 0 : emit(f, dir, fr);
+    case MD_BUS_FAULT_DELAY: return hold(f, dir, fr, f->p.delay_frames) ? 0 : emit(f, dir, fr);
+    case MD_BUS_FAULT_REORDER: return hold(f, dir, fr, 1u) ? 0 : emit(f, dir, fr);
     case MD_BUS_FAULT_KINDS:
-    default:
-        return emit(f, dir, fr);
+    default: return emit(f, dir, fr);
     }
 }
 
@@ -154,7 +151,7 @@ static int process(md_bus_fault_t *f, int dir, md_frame_t fr)
         }
     }
     if (k == MD_BUS_FAULT_CORRUPT && fr.len == 0u) {
-        k = MD_BUS_FAULT_KINDS;   /* no payload bit to flip */
+        k = MD_BUS_FAULT_KINDS; /* no payload bit to flip */
     }
     const uint64_t full_before = f->c.hold_full;
     const int rc = apply(f, dir, &fr, k, bit);
@@ -165,7 +162,10 @@ static int process(md_bus_fault_t *f, int dir, md_frame_t fr)
     return (rc != 0) ? rc : rr;
 }
 
-static md_bus_fault_t *self(md_bus_t *bus) { return (md_bus_fault_t *)bus->impl; }
+static md_bus_fault_t *self(md_bus_t *bus)
+{
+    return (md_bus_fault_t *)bus->impl;
+}
 
 static int fault_send(md_bus_t *bus, const md_frame_t *frame)
 {
@@ -280,4 +280,7 @@ int md_bus_fault_flush(md_bus_fault_t *f)
     return rc;
 }
 
-md_bus_fault_counters_t md_bus_fault_counters(const md_bus_fault_t *f) { return f->c; }
+md_bus_fault_counters_t md_bus_fault_counters(const md_bus_fault_t *f)
+{
+    return f->c;
+}

@@ -58,35 +58,35 @@ typedef int64_t (*md_bus_fault_clock_t)(void *ctx);
 /// corrupt, dup, delay, reorder in that order of the cumulative sum).
 typedef struct {
     double prob[MD_BUS_FAULT_KINDS];
-    uint32_t delay_frames;        ///< frames a delayed frame waits (1..MD_BUS_FAULT_HOLD_MAX)
-    uint32_t directions;          ///< MD_BUS_FAULT_TX | MD_BUS_FAULT_RX bits (0: none)
-    uint32_t id_mask, id_match;   ///< only frames with (id & id_mask) == id_match (mask 0: all)
-    uint64_t frame_from, frame_to;///< active for frame index in [from, to) (counted over both directions)
-    int64_t t_from_us, t_to_us;   ///< and, with a clock, for clock time in [from, to)
-    uint64_t seed;                ///< stream seed (any value; 0 is fine)
+    uint32_t delay_frames;          ///< frames a delayed frame waits (1..MD_BUS_FAULT_HOLD_MAX)
+    uint32_t directions;            ///< MD_BUS_FAULT_TX | MD_BUS_FAULT_RX bits (0: none)
+    uint32_t id_mask, id_match;     ///< only frames with (id & id_mask) == id_match (mask 0: all)
+    uint64_t frame_from, frame_to;  ///< active for frame index in [from, to) (counted over both directions)
+    int64_t t_from_us, t_to_us;     ///< and, with a clock, for clock time in [from, to)
+    uint64_t seed;                  ///< stream seed (any value; 0 is fine)
 } md_bus_fault_params_t;
 
 /// Counters: `injected[kind]` per fault kind, plus bookkeeping.
 typedef struct {
     uint64_t injected[MD_BUS_FAULT_KINDS];
-    uint64_t frames_seen;         ///< frames that passed the wrapper, both directions
-    uint64_t hold_full;           ///< delay/reorder refused: hold queue full
+    uint64_t frames_seen;  ///< frames that passed the wrapper, both directions
+    uint64_t hold_full;    ///< delay/reorder refused: hold queue full
 } md_bus_fault_counters_t;
 
 typedef struct {
     md_frame_t frame[MD_BUS_FAULT_HOLD_MAX];
-    uint64_t release_at[MD_BUS_FAULT_HOLD_MAX];   ///< direction frame count that frees it
+    uint64_t release_at[MD_BUS_FAULT_HOLD_MAX];  ///< direction frame count that frees it
     uint32_t n;
 } md_bus_fault_hold_t;
 
 typedef struct {
-    md_bus_t bus;                 ///< the faulty endpoint: use &bus like any md_bus_t
+    md_bus_t bus;  ///< the faulty endpoint: use &bus like any md_bus_t
     md_bus_t *inner;
     md_bus_fault_params_t p;
     md_bus_fault_clock_t clock;
     void *clock_ctx;
     uint64_t rng;
-    uint64_t dir_count[2];        ///< frames seen per direction (0 tx, 1 rx)
+    uint64_t dir_count[2];  ///< frames seen per direction (0 tx, 1 rx)
     md_bus_fault_hold_t hold[2];
     md_frame_t rx_ready[MD_BUS_FAULT_HOLD_MAX + 2u];  ///< frames due to the caller
     uint32_t rx_ready_n;

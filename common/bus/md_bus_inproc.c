@@ -31,15 +31,15 @@ _Static_assert(sizeof "inproc:" - 1u + MD_BUS_INPROC_NAME_MAX < sizeof(((md_bus_
 
 typedef struct {
     md_frame_t ring[MD_BUS_INPROC_QUEUE_LEN];
-    uint32_t head;              ///< next slot to read (free-running, masked on use)
-    uint32_t tail;              ///< next slot to write; tail - head = frames queued
-    md_bus_t *owner;            ///< NULL: slot free
+    uint32_t head;    ///< next slot to read (free-running, masked on use)
+    uint32_t tail;    ///< next slot to write; tail - head = frames queued
+    md_bus_t *owner;  ///< NULL: slot free
     uint8_t bus_index;
 } inproc_endpoint_t;
 
 typedef struct {
     char name[MD_BUS_INPROC_NAME_MAX + 1u];
-    uint32_t endpoints;         ///< open endpoints; 0 = bus slot free
+    uint32_t endpoints;  ///< open endpoints; 0 = bus slot free
 } inproc_bus_t;
 
 static inproc_endpoint_t g_endpoints[MD_BUS_INPROC_MAX_ENDPOINTS];
@@ -157,7 +157,6 @@ int md_bus_open_inproc(md_bus_t *bus, const char *name, char *why, size_t why_le
     (void)snprintf(bus->name, sizeof bus->name, "inproc:%s", name);
     bus->impl = slot;
     bus->ops = &inproc_ops;
-    md_bus_why(why, why_len, "in-process bus '%s' (endpoint %u of this process)", name,
-               (unsigned)(slot - g_endpoints));
+    md_bus_why(why, why_len, "in-process bus '%s' (endpoint %u of this process)", name, (unsigned)(slot - g_endpoints));
     return 0;
 }

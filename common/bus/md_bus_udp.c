@@ -116,7 +116,7 @@ static void udp_hold_queued(md_bus_t *bus)
         md_frame_t f;
         const int r = udp_read_socket(bus, &f);
         if (r <= 0) {
-            return;   // empty, or an error that receive will report
+            return;  // empty, or an error that receive will report
         }
         if (r == 1) {
             s->held[(s->held_head + s->held_count) % MD_BUS_UDP_HELD_LEN] = f;
@@ -166,9 +166,9 @@ static uint32_t udp_receiver_credit(uint32_t rmem, uint32_t rcvbuf)
 
 /// What one look at the group's members found.
 typedef struct {
-    uint32_t credit;       ///< frames we may send now (UDP_WINDOW_MAX if no other member)
-    uint64_t blocker;      ///< inode of the member that limits it (0: none)
-    bool saw_self;         ///< our own socket was in the dump
+    uint32_t credit;   ///< frames we may send now (UDP_WINDOW_MAX if no other member)
+    uint64_t blocker;  ///< inode of the member that limits it (0: none)
+    bool saw_self;     ///< our own socket was in the dump
 } udp_room_t;
 
 /// One member of the dump: skips our own socket and stalled ones (a stalled
@@ -274,7 +274,7 @@ static int udp_room(md_bus_t *bus, udp_room_t *room)
             }
             off += NLMSG_ALIGN((size_t)h->nlmsg_len);
             if (h->nlmsg_seq != req.nlh.nlmsg_seq) {
-                continue;   // a late answer to an earlier, abandoned request
+                continue;  // a late answer to an earlier, abandoned request
             }
             if (h->nlmsg_type == NLMSG_DONE) {
                 return 0;
@@ -319,7 +319,7 @@ static void udp_flow(md_bus_t *bus)
     for (;;) {
         udp_room_t room;
         if (udp_room(bus, &room) != 0) {
-            bus->stats.tx_flow_timeouts++;   // cannot look: this frame goes out unchecked
+            bus->stats.tx_flow_timeouts++;  // cannot look: this frame goes out unchecked
             return;
         }
         if (room.credit > 0u) {
@@ -334,7 +334,7 @@ static void udp_flow(md_bus_t *bus)
         } else if (now >= deadline_us) {
             bus->stats.tx_flow_timeouts++;
             if (!udp_mark_stalled(s, room.blocker)) {
-                return;   // too many stalled receivers: this frame goes out unchecked
+                return;  // too many stalled receivers: this frame goes out unchecked
             }
             deadline_us = now + s->flow_wait_us;
             continue;
@@ -342,7 +342,7 @@ static void udp_flow(md_bus_t *bus)
         udp_hold_queued(bus);
         const int64_t until = (now + UDP_FLOW_POLL_US < deadline_us) ? now + UDP_FLOW_POLL_US : deadline_us;
         if (s->held_count < MD_BUS_UDP_HELD_LEN) {
-            (void)md_bus_wait_fd(s->fd, POLLIN, until);   // a frame for us ends the wait early
+            (void)md_bus_wait_fd(s->fd, POLLIN, until);  // a frame for us ends the wait early
         } else {
             const struct timespec pause = {0, (long)(until - now) * 1000L};
             (void)nanosleep(&pause, NULL);
@@ -372,12 +372,24 @@ static int udp_configure(int fd, uint16_t port, const char **what)
     mreq.imr_ifindex = (int)if_nametoindex("lo");
     const struct sockaddr_in bind_addr = group_addr(port);
     int rc = 0;
-    if (rc == 0 && (rc = set_int(fd, SOL_SOCKET, SO_REUSEADDR, 1)) != 0) { *what = "SO_REUSEADDR"; }
-    if (rc == 0 && (rc = set_int(fd, SOL_SOCKET, SO_REUSEPORT, 1)) != 0) { *what = "SO_REUSEPORT"; }
-    if (rc == 0 && (rc = set_int(fd, SOL_SOCKET, SO_RXQ_OVFL, 1)) != 0) { *what = "SO_RXQ_OVFL"; }
-    if (rc == 0 && (rc = set_int(fd, IPPROTO_IP, IP_MULTICAST_TTL, 0)) != 0) { *what = "IP_MULTICAST_TTL 0"; }
-    if (rc == 0 && (rc = set_int(fd, IPPROTO_IP, IP_MULTICAST_LOOP, 1)) != 0) { *what = "IP_MULTICAST_LOOP 1"; }
-    if (rc == 0 && (rc = set_int(fd, IPPROTO_IP, IP_MULTICAST_ALL, 0)) != 0) { *what = "IP_MULTICAST_ALL 0"; }
+    if (rc == 0 && (rc = set_int(fd, SOL_SOCKET, SO_REUSEADDR, 1)) != 0) {
+        *what = "SO_REUSEADDR";
+    }
+    if (rc == 0 && (rc = set_int(fd, SOL_SOCKET, SO_REUSEPORT, 1)) != 0) {
+        *what = "SO_REUSEPORT";
+    }
+    if (rc == 0 && (rc = set_int(fd, SOL_SOCKET, SO_RXQ_OVFL, 1)) != 0) {
+        *what = "SO_RXQ_OVFL";
+    }
+    if (rc == 0 && (rc = set_int(fd, IPPROTO_IP, IP_MULTICAST_TTL, 0)) != 0) {
+        *what = "IP_MULTICAST_TTL 0";
+    }
+    if (rc == 0 && (rc = set_int(fd, IPPROTO_IP, IP_MULTICAST_LOOP, 1)) != 0) {
+        *what = "IP_MULTICAST_LOOP 1";
+    }
+    if (rc == 0 && (rc = set_int(fd, IPPROTO_IP, IP_MULTICAST_ALL, 0)) != 0) {
+        *what = "IP_MULTICAST_ALL 0";
+    }
     if (rc == 0 && setsockopt(fd, IPPROTO_IP, IP_MULTICAST_IF, &mreq, sizeof mreq) != 0) {
         rc = -errno;
         *what = "IP_MULTICAST_IF lo";
@@ -435,11 +447,11 @@ static int udp_filter_echoes(int fd, uint32_t sender_id)
 {
     struct sock_filter code[] = {
         BPF_STMT(BPF_LD | BPF_W | BPF_LEN, 0),
-        BPF_JUMP(BPF_JMP | BPF_JGE | BPF_K, 8u + 8u, 0, 2),   // UDP header + magic..sender id
-        BPF_STMT(BPF_LD | BPF_W | BPF_ABS, 8u + 4u),            // sender id, big-endian as on the wire
+        BPF_JUMP(BPF_JMP | BPF_JGE | BPF_K, 8u + 8u, 0, 2),  // UDP header + magic..sender id
+        BPF_STMT(BPF_LD | BPF_W | BPF_ABS, 8u + 4u),         // sender id, big-endian as on the wire
         BPF_JUMP(BPF_JMP | BPF_JEQ | BPF_K, sender_id, 1, 0),
-        BPF_STMT(BPF_RET | BPF_K, 0xFFFFFFFFu),                 // keep
-        BPF_STMT(BPF_RET | BPF_K, 0u),                          // our echo: drop
+        BPF_STMT(BPF_RET | BPF_K, 0xFFFFFFFFu),  // keep
+        BPF_STMT(BPF_RET | BPF_K, 0u),           // our echo: drop
     };
     const struct sock_fprog prog = {.len = (unsigned short)(sizeof code / sizeof code[0]), .filter = code};
     return setsockopt(fd, SOL_SOCKET, SO_ATTACH_FILTER, &prog, sizeof prog) == 0 ? 0 : -errno;
@@ -465,7 +477,7 @@ static int udp_flow_open(md_bus_t *bus)
     udp_room_t room;
     int rc = udp_room(bus, &room);
     if (rc == 0 && !room.saw_self) {
-        rc = -ENOENT;   // the dump does not show our socket: we could not see the others either
+        rc = -ENOENT;  // the dump does not show our socket: we could not see the others either
     }
     if (rc != 0) {
         (void)close(s->diag_fd);
@@ -506,8 +518,7 @@ int md_bus_open_udp(md_bus_t *bus, uint16_t port, char *why, size_t why_len)
         what = "verify multicast TTL 0";
     }
     if (rc != 0) {
-        md_bus_why(why, why_len, "UDP bus %s:%u: %s failed: %s", MD_BUS_UDP_GROUP, (unsigned)port, what,
-                   strerror(-rc));
+        md_bus_why(why, why_len, "UDP bus %s:%u: %s failed: %s", MD_BUS_UDP_GROUP, (unsigned)port, what, strerror(-rc));
         (void)close(fd);
         return rc;
     }

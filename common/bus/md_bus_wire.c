@@ -35,8 +35,7 @@ uint16_t md_bus_wire_crc16(const uint8_t *data, size_t len)
     return crc;
 }
 
-int md_bus_wire_encode(const md_frame_t *frame, uint32_t sender_id, uint32_t seq, uint8_t *out,
-                       size_t out_cap)
+int md_bus_wire_encode(const md_frame_t *frame, uint32_t sender_id, uint32_t seq, uint8_t *out, size_t out_cap)
 {
     if (frame == NULL || out == NULL || sender_id == 0u) {
         return MD_BUS_WIRE_E_ARG;
@@ -65,8 +64,8 @@ int md_bus_wire_encode(const md_frame_t *frame, uint32_t sender_id, uint32_t seq
     return (int)size;
 }
 
-md_bus_wire_status_t md_bus_wire_decode(const uint8_t *buf, size_t size, md_frame_t *frame,
-                                        uint32_t *sender_id, uint32_t *seq)
+md_bus_wire_status_t md_bus_wire_decode(const uint8_t *buf, size_t size, md_frame_t *frame, uint32_t *sender_id,
+                                        uint32_t *seq)
 {
     if (buf == NULL || frame == NULL || sender_id == NULL || seq == NULL) {
         return MD_BUS_WIRE_E_ARG;

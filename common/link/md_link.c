@@ -94,8 +94,7 @@ static md_link_result_t finish(md_link_decoder_t *d, md_frame_t *out)
     memset(&f, 0, sizeof f);
     f.flags = d->buf[0];
     f.len = d->buf[1];
-    f.id = (uint32_t)d->buf[2] | ((uint32_t)d->buf[3] << 8) | ((uint32_t)d->buf[4] << 16) |
-           ((uint32_t)d->buf[5] << 24);
+    f.id = (uint32_t)d->buf[2] | ((uint32_t)d->buf[3] << 8) | ((uint32_t)d->buf[4] << 16) | ((uint32_t)d->buf[5] << 24);
     if ((size_t)f.len != n - MD_LINK_HEADER_BYTES - MD_LINK_CRC_BYTES || !md_frame_valid(&f)) {
         d->bad_frame++;
         return MD_LINK_BAD_FRAME;

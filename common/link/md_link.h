@@ -39,21 +39,21 @@
 
 /// What md_link_decode_byte made of one byte.
 typedef enum {
-    MD_LINK_NONE = 0,      ///< inside a packet (or an ignored empty packet)
-    MD_LINK_FRAME = 1,     ///< a valid frame is in *out
-    MD_LINK_BAD_CRC = -1,  ///< a packet with a wrong CRC (dropped)
-    MD_LINK_BAD_FRAME = -2,///< length, flags or id not a valid frame (dropped)
-    MD_LINK_BAD_ESC = -3,  ///< an escape byte followed by neither 0xDC nor 0xDD (packet dropped)
-    MD_LINK_TOO_LONG = -4, ///< more bytes than the largest packet (dropped up to the next END)
+    MD_LINK_NONE = 0,        ///< inside a packet (or an ignored empty packet)
+    MD_LINK_FRAME = 1,       ///< a valid frame is in *out
+    MD_LINK_BAD_CRC = -1,    ///< a packet with a wrong CRC (dropped)
+    MD_LINK_BAD_FRAME = -2,  ///< length, flags or id not a valid frame (dropped)
+    MD_LINK_BAD_ESC = -3,    ///< an escape byte followed by neither 0xDC nor 0xDD (packet dropped)
+    MD_LINK_TOO_LONG = -4,   ///< more bytes than the largest packet (dropped up to the next END)
 } md_link_result_t;
 
 /// Decoder state and its counters.
 typedef struct {
     uint8_t buf[MD_LINK_PACKET_MAX];
-    uint16_t n;            ///< bytes of the current packet so far
-    uint8_t esc;           ///< the previous byte was MD_LINK_ESC
-    uint8_t discard;       ///< the current packet is already bad: skip to END
-    uint32_t frames;       ///< valid frames decoded
+    uint16_t n;       ///< bytes of the current packet so far
+    uint8_t esc;      ///< the previous byte was MD_LINK_ESC
+    uint8_t discard;  ///< the current packet is already bad: skip to END
+    uint32_t frames;  ///< valid frames decoded
     uint32_t bad_crc;
     uint32_t bad_frame;
     uint32_t bad_esc;

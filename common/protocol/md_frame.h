@@ -10,17 +10,17 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#define MD_FRAME_MAX_DATA 64u          ///< CAN FD payload limit
-#define MD_FRAME_FLAG_FD 0x01u         ///< CAN FD frame (length up to 64)
-#define MD_FRAME_FLAG_EXT 0x02u        ///< 29-bit identifier
-#define MD_FRAME_FLAG_BRS 0x04u        ///< FD bit-rate switch (informational)
+#define MD_FRAME_MAX_DATA 64u    ///< CAN FD payload limit
+#define MD_FRAME_FLAG_FD 0x01u   ///< CAN FD frame (length up to 64)
+#define MD_FRAME_FLAG_EXT 0x02u  ///< 29-bit identifier
+#define MD_FRAME_FLAG_BRS 0x04u  ///< FD bit-rate switch (informational)
 #define MD_FRAME_STD_ID_MAX 0x7FFu
 #define MD_FRAME_EXT_ID_MAX 0x1FFFFFFFu
 
 typedef struct {
-    uint32_t id;                       ///< 11-bit, or 29-bit with MD_FRAME_FLAG_EXT
-    uint8_t len;                       ///< payload bytes: 0..8, or an FD length (12,16,20,24,32,48,64)
-    uint8_t flags;                     ///< MD_FRAME_FLAG_*
+    uint32_t id;    ///< 11-bit, or 29-bit with MD_FRAME_FLAG_EXT
+    uint8_t len;    ///< payload bytes: 0..8, or an FD length (12,16,20,24,32,48,64)
+    uint8_t flags;  ///< MD_FRAME_FLAG_*
     uint8_t data[MD_FRAME_MAX_DATA];
 } md_frame_t;
 

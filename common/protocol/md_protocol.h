@@ -11,11 +11,11 @@
 
 /// Node ids (CANopen-style: heartbeat 0x700 + id, EMCY 0x080 + id).
 typedef enum {
-    MD_NODE_CTRL = 1,   ///< the controller firmware
-    MD_NODE_ACT = 2,    ///< actuator driver (simulator)
-    MD_NODE_HALL = 3,   ///< position sensor (simulator)
-    MD_NODE_FE = 4,     ///< neural front-end (simulator)
-    MD_NODE_OPER = 5    ///< operator tools
+    MD_NODE_CTRL = 1,  ///< the controller firmware
+    MD_NODE_ACT = 2,   ///< actuator driver (simulator)
+    MD_NODE_HALL = 3,  ///< position sensor (simulator)
+    MD_NODE_FE = 4,    ///< neural front-end (simulator)
+    MD_NODE_OPER = 5   ///< operator tools
 } md_node_id_t;
 
 /// Heartbeat NodeState values (CANopen NMT states).
@@ -44,22 +44,17 @@ typedef enum {
 typedef enum {
     MD_EMCY_NONE = 0x0000,
     MD_EMCY_GENERIC = 0x1000,
-    MD_EMCY_SOFTWARE = 0x6100,          ///< internal software error (Info = md_status_t)
-    MD_EMCY_ESTOP = 0x6200,             ///< e-stop latched (Info = source node)
-    MD_EMCY_COMM_OVERRUN = 0x8110,      ///< frames lost or queue overflow
-    MD_EMCY_HEARTBEAT_LOST = 0x8130,    ///< a monitored node's heartbeat timed out (Info = node id)
-    MD_EMCY_PROTOCOL = 0x8200,          ///< malformed frame / bad sequence (Info = frame id)
-    MD_EMCY_MOTION = 0x8400,            ///< actuator stall, end stop, depth window
-    MD_EMCY_SENSOR = 0x5000             ///< position sensor reading invalid
+    MD_EMCY_SOFTWARE = 0x6100,        ///< internal software error (Info = md_status_t)
+    MD_EMCY_ESTOP = 0x6200,           ///< e-stop latched (Info = source node)
+    MD_EMCY_COMM_OVERRUN = 0x8110,    ///< frames lost or queue overflow
+    MD_EMCY_HEARTBEAT_LOST = 0x8130,  ///< a monitored node's heartbeat timed out (Info = node id)
+    MD_EMCY_PROTOCOL = 0x8200,        ///< malformed frame / bad sequence (Info = frame id)
+    MD_EMCY_MOTION = 0x8400,          ///< actuator stall, end stop, depth window
+    MD_EMCY_SENSOR = 0x5000           ///< position sensor reading invalid
 } md_emcy_code_t;
 
 /// ACT_STATUS State values.
-typedef enum {
-    MD_ACT_IDLE = 0,
-    MD_ACT_MOVING = 1,
-    MD_ACT_STALLED = 2,
-    MD_ACT_FAULT = 3
-} md_act_state_t;
+typedef enum { MD_ACT_IDLE = 0, MD_ACT_MOVING = 1, MD_ACT_STALLED = 2, MD_ACT_FAULT = 3 } md_act_state_t;
 
 /// ACT_CMD Command and Direction values.
 #define MD_ACT_CMD_HALT 0u

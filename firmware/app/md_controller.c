@@ -53,4 +53,7 @@ uint64_t md_controller_next_deadline_us(const md_controller_t *c)
     return (node_d < cycle_d) ? node_d : cycle_d;
 }
 
-md_node_t *md_controller_node(md_controller_t *c) { return (c == NULL) ? NULL : &c->node; }
+md_node_t *md_controller_node(md_controller_t *c)
+{
+    return (c == NULL) ? NULL : &c->node;
+}

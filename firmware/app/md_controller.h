@@ -33,8 +33,8 @@
 /// All controller state: the node and the per-electrode cycles with their one
 /// shared processing workspace. Treat as opaque outside firmware/app.
 struct md_controller {
-    md_node_t node;     ///< NMT, heartbeat, e-stop, parameters, frame validation
-    md_cycle_t cycle;   ///< electrodes' cycles (record .. telemetry) and the shared workspace
+    md_node_t node;    ///< NMT, heartbeat, e-stop, parameters, frame validation
+    md_cycle_t cycle;  ///< electrodes' cycles (record .. telemetry) and the shared workspace
 };
 typedef struct md_controller md_controller_t;
 

@@ -12,11 +12,11 @@
 
 #define US_PER_MS 1000u
 #define US_PER_S 1000000u
-#define ANSWER_MARGIN_US ((uint64_t)5u * US_PER_S) /* platform-time slack on every wait for an answer */
+#define ANSWER_MARGIN_US ((uint64_t)5u * US_PER_S)  /* platform-time slack on every wait for an answer */
 #define LOCKSTEP_LOST_US ((uint64_t)30u * US_PER_S) /* lockstep: no answer frame this long = a lost frame */
-#define SERVO_ACTIONS_PER_POLL 4u         /* servo actions taken in one poll at most */
-#define STEP_EPS_UM 1e-6                  /* a smaller SFSM step is no step */
-#define REC_SAMPLES_MAX (30u * 65536u)    /* REC_REQ bound of the front-end (Seq range × 30) */
+#define SERVO_ACTIONS_PER_POLL 4u                   /* servo actions taken in one poll at most */
+#define STEP_EPS_UM 1e-6                            /* a smaller SFSM step is no step */
+#define REC_SAMPLES_MAX (30u * 65536u)              /* REC_REQ bound of the front-end (Seq range × 30) */
 
 /* ------------------------------------------------------------------ */
 /* Configuration from the parameters                                   */
@@ -184,7 +184,10 @@ static void arm_timeout(md_cycle_t *c, uint64_t now_us, uint64_t deadline_us)
     c->answer_us = now_us;
 }
 
-static bool answer_late(const md_cycle_t *c, uint64_t now_us) { return now_us >= answer_deadline_us(c); }
+static bool answer_late(const md_cycle_t *c, uint64_t now_us)
+{
+    return now_us >= answer_deadline_us(c);
+}
 
 static void start_wait(md_cycle_t *c, md_node_t *node, uint32_t duration_us, uint64_t now_us)
 {
@@ -219,7 +222,10 @@ static bool wait_done(const md_cycle_t *c, const md_node_t *node, uint64_t now_u
     }
 }
 
-static bool cycle_allowed(const md_node_t *node) { return md_node_motion_allowed(node); }
+static bool cycle_allowed(const md_node_t *node)
+{
+    return md_node_motion_allowed(node);
+}
 
 /* ------------------------------------------------------------------ */
 /* Ending a cycle                                                      */
@@ -352,8 +358,8 @@ static void on_rec_end(md_cycle_t *c, md_node_t *node, const md_frame_t *f)
 {
     md_electrode_t *el = &c->el[c->active];
     struct md_can_rec_end_t m;
-    if (el->phase != MD_CYC_RECORDING || md_can_rec_end_unpack(&m, f->data, f->len) != 0 ||
-        m.electrode != c->active || m.interval_id != el->interval_id) {
+    if (el->phase != MD_CYC_RECORDING || md_can_rec_end_unpack(&m, f->data, f->len) != 0 || m.electrode != c->active ||
+        m.interval_id != el->interval_id) {
         return; /* another interval's end (e.g. an aborted earlier one) */
     }
     if (m.status != MD_REC_COMPLETE || el->rec_bad || m.total_samples != el->rec_samples ||
@@ -482,8 +488,8 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     md_electrode_t *el = &c->el[c->active];
     el->flags = c->lockstep ? MD_TLM_F_LOCKSTEP : 0u;
     el->flags |= (el->last_move == MD_SERVO_R_CONVERGED) ? MD_TLM_F_LAST_MOVE_OK : 0u;
-    el->flags |= (el->last_move != MD_SERVO_R_NONE && el->last_move != MD_SERVO_R_CONVERGED)
-                     ? MD_TLM_F_LAST_MOVE_FAILED : 0u;
+    el->flags |= (el->last_move != MD_SERVO_R_NONE && el->last_move != MD_SERVO_R_CONVERGED) ? MD_TLM_F_LAST_MOVE_FAILED
+                                                                                             : 0u;
     md_process_out_t po;
     const double duration_s = (double)el->rec_samples / (double)el->sample_rate_hz;
     md_status_t st = (el->rec_status != MD_OK) ? el->rec_status : MD_OK;
@@ -776,8 +782,8 @@ uint64_t md_cycle_next_deadline_us(const md_cycle_t *c, const md_node_t *node)
     const md_electrode_t *el = &c->el[c->active];
     const bool allowed = md_node_motion_allowed(node);
     const bool op = node->state == MD_NODE_STATE_OPERATIONAL;
-    if ((op && !c->was_operational) || el->phase == MD_CYC_PROCESS ||
-        (!allowed && el->phase != MD_CYC_IDLE) || (allowed && el->phase == MD_CYC_IDLE && any_fe_info(c))) {
+    if ((op && !c->was_operational) || el->phase == MD_CYC_PROCESS || (!allowed && el->phase != MD_CYC_IDLE) ||
+        (allowed && el->phase == MD_CYC_IDLE && any_fe_info(c))) {
         return 0u;
     }
     if (el->phase == MD_CYC_IDLE) {

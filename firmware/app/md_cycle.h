@@ -44,69 +44,69 @@
 #include "tracking/mhtc.h"
 
 /// TLM_STATUS Flags bits (docs/controller.md).
-#define MD_TLM_F_SKIPPED 0x0001u          ///< processing failed: cycle skipped, tracks and SFSM kept
-#define MD_TLM_F_REC_FAILED 0x0002u       ///< recording aborted / out of sequence / incomplete / timed out
-#define MD_TLM_F_MOVE 0x0004u             ///< the SFSM asked for a step and the servo starts it
-#define MD_TLM_F_INHIBITED 0x0008u        ///< the SFSM asked for a step but motion is not allowed
-#define MD_TLM_F_CLAMPED 0x0010u          ///< the SFSM shortened the step to the depth window
-#define MD_TLM_F_LAST_MOVE_OK 0x0020u     ///< the previous move converged
-#define MD_TLM_F_LAST_MOVE_FAILED 0x0040u ///< the previous move ended otherwise (see moves_failed)
-#define MD_TLM_F_LOCKSTEP 0x0080u         ///< simulator lockstep: cycle time is SIM_CLOCK
-#define MD_TLM_F_NO_DEPTH 0x0100u         ///< no calibrated Hall depth: no decision, no motion
-#define MD_TLM_F_GUARD_LIMITED 0x0200u    ///< the approach guard shortened, cancelled or reversed the SFSM's step
-#define MD_TLM_F_GUARD_RETRACT 0x0400u    ///< the approach guard ordered a retraction
-#define MD_TLM_F_GUARD_CEILING 0x0800u    ///< an approach-guard ceiling holds after this cycle
-#define MD_TLM_REASON_SHIFT 16u           ///< bits 16..23: sfsm_reason_t of the decision
+#define MD_TLM_F_SKIPPED 0x0001u           ///< processing failed: cycle skipped, tracks and SFSM kept
+#define MD_TLM_F_REC_FAILED 0x0002u        ///< recording aborted / out of sequence / incomplete / timed out
+#define MD_TLM_F_MOVE 0x0004u              ///< the SFSM asked for a step and the servo starts it
+#define MD_TLM_F_INHIBITED 0x0008u         ///< the SFSM asked for a step but motion is not allowed
+#define MD_TLM_F_CLAMPED 0x0010u           ///< the SFSM shortened the step to the depth window
+#define MD_TLM_F_LAST_MOVE_OK 0x0020u      ///< the previous move converged
+#define MD_TLM_F_LAST_MOVE_FAILED 0x0040u  ///< the previous move ended otherwise (see moves_failed)
+#define MD_TLM_F_LOCKSTEP 0x0080u          ///< simulator lockstep: cycle time is SIM_CLOCK
+#define MD_TLM_F_NO_DEPTH 0x0100u          ///< no calibrated Hall depth: no decision, no motion
+#define MD_TLM_F_GUARD_LIMITED 0x0200u     ///< the approach guard shortened, cancelled or reversed the SFSM's step
+#define MD_TLM_F_GUARD_RETRACT 0x0400u     ///< the approach guard ordered a retraction
+#define MD_TLM_F_GUARD_CEILING 0x0800u     ///< an approach-guard ceiling holds after this cycle
+#define MD_TLM_REASON_SHIFT 16u            ///< bits 16..23: sfsm_reason_t of the decision
 
 /// Where one electrode is in its cycle.
 typedef enum {
-    MD_CYC_IDLE = 0,     ///< waiting for its turn / for the node to be operational
-    MD_CYC_RECORDING,    ///< REC_REQ sent; REC_DATA streaming
-    MD_CYC_PROCESS,      ///< REC_END received; poll processes the interval
-    MD_CYC_MOVING,       ///< servo move in progress
-    MD_CYC_SETTLING      ///< waiting settle_ms before the next electrode's turn
+    MD_CYC_IDLE = 0,   ///< waiting for its turn / for the node to be operational
+    MD_CYC_RECORDING,  ///< REC_REQ sent; REC_DATA streaming
+    MD_CYC_PROCESS,    ///< REC_END received; poll processes the interval
+    MD_CYC_MOVING,     ///< servo move in progress
+    MD_CYC_SETTLING    ///< waiting settle_ms before the next electrode's turn
 } md_cycle_phase_t;
 
 /// What a waiting phase waits for (besides its frames).
 typedef enum {
     MD_WAIT_NONE = 0,
-    MD_WAIT_SIM,         ///< lockstep: SIM_CLOCK reaching wait_sim_us
-    MD_WAIT_WALL         ///< real time: platform clock reaching wait_wall_us
+    MD_WAIT_SIM,  ///< lockstep: SIM_CLOCK reaching wait_sim_us
+    MD_WAIT_WALL  ///< real time: platform clock reaching wait_wall_us
 } md_wait_t;
 
 /// Per-electrode state that persists across cycles.
 typedef struct {
-    mhtc_state_t mhtc;          ///< tracker (thesis ch. 4)
-    sc_table_t curves;          ///< SNR curve per track (§2.2.3)
-    sfsm_t sfsm;                ///< supervisory state machine (§2.2.4)
-    ag_state_t guard;           ///< approach guard after the SFSM (approach_guard.h)
-    double guard_amp;           ///< robust amplitude of the last processed interval
-    md_servo_t servo;           ///< depth servo
+    mhtc_state_t mhtc;  ///< tracker (thesis ch. 4)
+    sc_table_t curves;  ///< SNR curve per track (§2.2.3)
+    sfsm_t sfsm;        ///< supervisory state machine (§2.2.4)
+    ag_state_t guard;   ///< approach guard after the SFSM (approach_guard.h)
+    double guard_amp;   ///< robust amplitude of the last processed interval
+    md_servo_t servo;   ///< depth servo
     md_cycle_phase_t phase;
-    uint16_t cycle;             ///< cycles completed (TLM Cycle, wraps)
-    uint16_t interval_id;       ///< REC_REQ IntervalId of the current/last interval
-    uint32_t rec_requested;     ///< NumSamples asked
-    uint32_t rec_samples;       ///< samples streamed into the detector
-    bool rec_bad;               ///< a frame of this interval was lost or rejected
-    md_status_t rec_status;     ///< first ic_push failure of this interval (MD_OK if none)
-    uint64_t rec_start_us;      ///< cycle time of the interval's first sample
-    bool rec_clock_seen;        ///< a SIM_CLOCK arrived since the REC_REQ (lockstep start time)
-    bool rec_end_ok;            ///< lockstep: a complete REC_END arrived, the batch's closing SIM_CLOCK not yet
-    bool fe_info;               ///< FE_INFO received
-    uint32_t sample_rate_hz;    ///< from FE_INFO
-    double gain_uv;             ///< µV per ADC count, from FE_INFO
-    bool resume;                ///< operator resume (NMT start) not yet seen by the SFSM
-    double depth_um;            ///< depth used by the last decision
-    double tracked_depth_um;    ///< depth of the last interval the tracker processed
-    bool tracked_depth_ok;      ///< tracked_depth_um is a measurement
-    double move_um;             ///< travel since that interval (0 if unknown): the tracker's Q grows with it
-    double target_um;           ///< requested target of the last decision
+    uint16_t cycle;           ///< cycles completed (TLM Cycle, wraps)
+    uint16_t interval_id;     ///< REC_REQ IntervalId of the current/last interval
+    uint32_t rec_requested;   ///< NumSamples asked
+    uint32_t rec_samples;     ///< samples streamed into the detector
+    bool rec_bad;             ///< a frame of this interval was lost or rejected
+    md_status_t rec_status;   ///< first ic_push failure of this interval (MD_OK if none)
+    uint64_t rec_start_us;    ///< cycle time of the interval's first sample
+    bool rec_clock_seen;      ///< a SIM_CLOCK arrived since the REC_REQ (lockstep start time)
+    bool rec_end_ok;          ///< lockstep: a complete REC_END arrived, the batch's closing SIM_CLOCK not yet
+    bool fe_info;             ///< FE_INFO received
+    uint32_t sample_rate_hz;  ///< from FE_INFO
+    double gain_uv;           ///< µV per ADC count, from FE_INFO
+    bool resume;              ///< operator resume (NMT start) not yet seen by the SFSM
+    double depth_um;          ///< depth used by the last decision
+    double tracked_depth_um;  ///< depth of the last interval the tracker processed
+    bool tracked_depth_ok;    ///< tracked_depth_um is a measurement
+    double move_um;           ///< travel since that interval (0 if unknown): the tracker's Q grows with it
+    double target_um;         ///< requested target of the last decision
     bool has_dominant;
-    uint32_t dominant;          ///< dominant track id
-    double snr, iqm;            ///< of the dominant track
-    uint32_t flags;             ///< MD_TLM_F_* of the last cycle
-    uint64_t cost_detect;       ///< work (md_port_t work_now units) of this interval's detection (REC_DATA)
-    uint64_t cost_process;      ///< work of processing, scoring and deciding the last interval
+    uint32_t dominant;      ///< dominant track id
+    double snr, iqm;        ///< of the dominant track
+    uint32_t flags;         ///< MD_TLM_F_* of the last cycle
+    uint64_t cost_detect;   ///< work (md_port_t work_now units) of this interval's detection (REC_DATA)
+    uint64_t cost_process;  ///< work of processing, scoring and deciding the last interval
     md_servo_result_t last_move;
     /* counters */
     uint32_t cycles, skipped, rec_failed, moves, moves_failed, inhibited, timeouts, guard_limited;
@@ -120,18 +120,18 @@ typedef ic_workspace_t md_workspace_t;
 typedef struct {
     md_electrode_t el[MD_ELECTRODES];
     md_workspace_t ws;
-    uint8_t active;             ///< electrode whose turn it is
-    bool lockstep;              ///< the front-end's heartbeat carries the lockstep flag
-    bool was_operational;       ///< node state at the previous call (resume detection)
+    uint8_t active;        ///< electrode whose turn it is
+    bool lockstep;         ///< the front-end's heartbeat carries the lockstep flag
+    bool was_operational;  ///< node state at the previous call (resume detection)
     md_wait_t wait;
-    uint64_t wait_sim_us;       ///< MD_WAIT_SIM: simulated time that ends the wait
-    uint32_t wait_step_us;      ///< MD_WAIT_SIM: the SIM_STEP's duration (anchored at the next SIM_CLOCK)
-    uint64_t wait_wall_us;      ///< MD_WAIT_WALL: platform time that ends the wait
-    uint64_t timeout_wall_us;   ///< the current wait/answer ends here in platform time
-    uint64_t plant_alive_us;    ///< platform time of the plant's latest frame (lockstep timeouts)
-    uint64_t answer_us;         ///< platform time of the latest request or answer frame (lockstep)
-    uint8_t sim_token;          ///< SIM_STEP Token
-    uint32_t cycles;            ///< cycles completed, all electrodes
+    uint64_t wait_sim_us;      ///< MD_WAIT_SIM: simulated time that ends the wait
+    uint32_t wait_step_us;     ///< MD_WAIT_SIM: the SIM_STEP's duration (anchored at the next SIM_CLOCK)
+    uint64_t wait_wall_us;     ///< MD_WAIT_WALL: platform time that ends the wait
+    uint64_t timeout_wall_us;  ///< the current wait/answer ends here in platform time
+    uint64_t plant_alive_us;   ///< platform time of the plant's latest frame (lockstep timeouts)
+    uint64_t answer_us;        ///< platform time of the latest request or answer frame (lockstep)
+    uint8_t sim_token;         ///< SIM_STEP Token
+    uint32_t cycles;           ///< cycles completed, all electrodes
 } md_cycle_t;
 
 /// Resets every electrode (trackers, curves, SFSM in Spike Search, servo

@@ -51,23 +51,23 @@ _Static_assert(MD_ELECTRODES <= 8u, "halt_pending is an 8-bit mask");
 
 /// Supervision of one remote node's heartbeat.
 typedef struct {
-    uint8_t node_id;        ///< MD_NODE_ACT, MD_NODE_HALL or MD_NODE_FE
-    bool seen;              ///< a valid heartbeat arrived since init/reset/enable
-    bool lost;              ///< silent longer than the timeout; motion inhibited until it is back
-    uint8_t last_state;     ///< NodeState of its last heartbeat
-    uint64_t last_us;       ///< arrival time of its last heartbeat
+    uint8_t node_id;     ///< MD_NODE_ACT, MD_NODE_HALL or MD_NODE_FE
+    bool seen;           ///< a valid heartbeat arrived since init/reset/enable
+    bool lost;           ///< silent longer than the timeout; motion inhibited until it is back
+    uint8_t last_state;  ///< NodeState of its last heartbeat
+    uint64_t last_us;    ///< arrival time of its last heartbeat
 } md_node_monitor_t;
 
 /// Diagnostic counters; every one is readable as a parameter (md_params.h, 0x30xx).
 /// They survive NMT reset-node so that the evidence of a fault stays readable.
 typedef struct {
-    uint32_t rx_frames;        ///< every frame pushed in
-    uint32_t rx_malformed;     ///< bad length/FD flag + bad range + invalid frames
+    uint32_t rx_frames;     ///< every frame pushed in
+    uint32_t rx_malformed;  ///< bad length/FD flag + bad range + invalid frames
     uint32_t rx_unknown_id;
     uint32_t rx_bad_length;
     uint32_t rx_bad_range;
     uint32_t rx_bad_sequence;
-    uint32_t rx_id_conflict;   ///< someone else sent an id only the controller sends
+    uint32_t rx_id_conflict;  ///< someone else sent an id only the controller sends
     uint32_t tx_frames;
     uint32_t tx_failures;
     uint32_t emcy_sent;
@@ -75,21 +75,21 @@ typedef struct {
     uint32_t node_back;
     uint32_t estop_events;
     uint32_t nmt_refused;
-    uint32_t cycles_done;      ///< electrode cycles completed (md_cycle)
-    uint32_t cycles_skipped;   ///< cycles whose processing failed (md_cycle)
-    uint32_t rec_failed;       ///< recordings aborted/incomplete/timed out (md_cycle)
-    uint32_t moves_failed;     ///< servo moves that failed (md_cycle)
+    uint32_t cycles_done;     ///< electrode cycles completed (md_cycle)
+    uint32_t cycles_skipped;  ///< cycles whose processing failed (md_cycle)
+    uint32_t rec_failed;      ///< recordings aborted/incomplete/timed out (md_cycle)
+    uint32_t moves_failed;    ///< servo moves that failed (md_cycle)
 } md_node_counters_t;
 
 /// Last accepted state of one electrode's peripherals (for the closed loop).
 typedef struct {
-    uint8_t act_state;          ///< ACT_STATUS State
-    uint8_t act_seq;            ///< Seq of the last ACT_CMD sent
+    uint8_t act_state;  ///< ACT_STATUS State
+    uint8_t act_seq;    ///< Seq of the last ACT_CMD sent
     bool hall_seen;
-    uint8_t hall_seq;           ///< Seq of the last accepted HALL_READING
-    uint16_t hall_code;         ///< RawCode of the last accepted HALL_READING
-    uint16_t rec_next_seq;      ///< REC_DATA Seq expected next in this interval
-    uint32_t rec_samples;       ///< samples accepted in this interval
+    uint8_t hall_seq;       ///< Seq of the last accepted HALL_READING
+    uint16_t hall_code;     ///< RawCode of the last accepted HALL_READING
+    uint16_t rec_next_seq;  ///< REC_DATA Seq expected next in this interval
+    uint32_t rec_samples;   ///< samples accepted in this interval
 } md_node_electrode_t;
 
 /// The whole node. Treat fields as read-only outside md_node.c.
@@ -97,15 +97,15 @@ typedef struct {
     md_port_t port;
     md_params_t params;
     md_node_state_t state;
-    bool boot_pending;              ///< boot-up heartbeat not sent yet (poll sends it)
+    bool boot_pending;  ///< boot-up heartbeat not sent yet (poll sends it)
     bool estop_latched;
     uint8_t estop_source, estop_reason;
-    uint64_t boot_us;               ///< time of md_node_init: origin of uptime
+    uint64_t boot_us;  ///< time of md_node_init: origin of uptime
     uint64_t next_heartbeat_us;
-    bool protocol_emcy_sent;        ///< a protocol EMCY went out (inhibit applies)
-    uint64_t protocol_emcy_us;      ///< when it went out
-    uint64_t sim_time_us;           ///< last SIM_CLOCK (lockstep mode)
-    uint8_t halt_pending;           ///< electrodes (bit e) whose halt still has to be sent
+    bool protocol_emcy_sent;    ///< a protocol EMCY went out (inhibit applies)
+    uint64_t protocol_emcy_us;  ///< when it went out
+    uint64_t sim_time_us;       ///< last SIM_CLOCK (lockstep mode)
+    uint8_t halt_pending;       ///< electrodes (bit e) whose halt still has to be sent
     md_node_monitor_t monitor[MD_NODE_MONITORED];
     md_node_electrode_t electrode[MD_ELECTRODES];
     md_node_counters_t counters;
@@ -138,8 +138,7 @@ bool md_node_motion_allowed(const md_node_t *node);
 
 /// Sends one ACT_CMD step. MD_E_STATE if motion is not allowed, MD_E_ARG on a
 /// bad electrode/direction, MD_E_IO if the send failed (counted).
-md_status_t md_node_step(md_node_t *node, uint8_t electrode, uint8_t direction, uint16_t steps,
-                         uint16_t rate_hz);
+md_status_t md_node_step(md_node_t *node, uint8_t electrode, uint8_t direction, uint16_t steps, uint16_t rate_hz);
 
 /// Sends one frame the controller owns (telemetry, REC_REQ, SIM_STEP, ...):
 /// counted in tx_frames / tx_failures. `fd` marks a CAN FD frame. MD_E_ARG

@@ -55,8 +55,8 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                           "Hall readings averaged per depth measurement"},
     [MD_P_SERVO_STEP_NM] = {0x2023u, "servo_step_nm", "nm", 1.0, 1000.0, 40.0, MD_PARAM_F_MOTION,
                             "initial estimate of one piezo step (learned per direction from the Hall depth)"},
-    [MD_P_SERVO_RATE_HZ] = {0x2024u, "servo_rate_hz", "Hz", 1.0, 5000.0, 1000.0,
-                            MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER, "piezo step rate of ACT_CMD"},
+    [MD_P_SERVO_RATE_HZ] = {0x2024u, "servo_rate_hz", "Hz", 1.0, 5000.0, 1000.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
+                            "piezo step rate of ACT_CMD"},
     [MD_P_SFSM_GAMMA1] = {0x2030u, "sfsm_gamma1", "", 0.1, 100.0, 2.0, MD_PARAM_F_MOTION,
                           "SFSM gamma1: isolation distance to follow the SNR gradient (< gamma2)"},
     [MD_P_SFSM_GAMMA2] = {0x2031u, "sfsm_gamma2", "", 0.1, 100.0, 3.0, MD_PARAM_F_MOTION,
@@ -65,8 +65,7 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                           "SFSM gamma3: isolation distance to declare isolation at once"},
     [MD_P_SFSM_WAIT_R] = {0x2033u, "sfsm_wait_r", "", 1.0, 8.0, 3.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
                           "SFSM R: cycles a WAIT condition must hold"},
-    [MD_P_SFSM_LOST_CYCLES] = {0x2034u, "sfsm_lost_cycles", "", 1.0, 100.0, 5.0,
-                               MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
+    [MD_P_SFSM_LOST_CYCLES] = {0x2034u, "sfsm_lost_cycles", "", 1.0, 100.0, 5.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
                                "SFSM cycles without a dominant track before Spike Search"},
     [MD_P_SFSM_SNR_DROP] = {0x2035u, "sfsm_snr_drop", "", 0.05, 0.99, 0.85, MD_PARAM_F_MOTION,
                             "SFSM: leave Neuron Isolated below this fraction of the isolation SNR"},
@@ -120,8 +119,7 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
     [MD_P_EMCY_SENT] = {0x3022u, "emcy_sent", "", 0.0, U32_MAX_D, 0.0, RO_LIVE, "EMCY_CTRL frames sent"},
     [MD_P_HEARTBEAT_LOST] = {0x3030u, "heartbeat_lost", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
                              "monitored nodes that went silent"},
-    [MD_P_NODE_BACK] = {0x3031u, "node_back", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
-                        "lost nodes whose heartbeat came back"},
+    [MD_P_NODE_BACK] = {0x3031u, "node_back", "", 0.0, U32_MAX_D, 0.0, RO_LIVE, "lost nodes whose heartbeat came back"},
     [MD_P_ESTOP_EVENTS] = {0x3032u, "estop_events", "", 0.0, U32_MAX_D, 0.0, RO_LIVE, "ESTOP frames received"},
     [MD_P_NMT_REFUSED] = {0x3033u, "nmt_refused", "", 0.0, U32_MAX_D, 0.0, RO_LIVE,
                           "NMT commands refused (start while the e-stop is latched)"},
@@ -137,7 +135,10 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
 
 _Static_assert(sizeof(PARAM_TABLE) / sizeof(PARAM_TABLE[0]) == (size_t)MD_P_COUNT, "one row per id");
 
-size_t md_params_count(void) { return (size_t)MD_P_COUNT; }
+size_t md_params_count(void)
+{
+    return (size_t)MD_P_COUNT;
+}
 
 const md_param_def_t *md_params_def(size_t id)
 {

@@ -20,14 +20,14 @@
 
 /// What the interval says, for the decision and the telemetry.
 typedef struct {
-    uint32_t n_spikes;          ///< windows given to the tracker
-    bool spikes_seen;           ///< windows cut / duration >= min_rate_hz
+    uint32_t n_spikes;  ///< windows given to the tracker
+    bool spikes_seen;   ///< windows cut / duration >= min_rate_hz
     bool has_dominant;
-    uint32_t dominant;          ///< its track id
-    uint8_t dominant_cluster;   ///< its cluster in the leading model (1..G)
-    double snr;                 ///< its SNR (peak-to-peak / noise RMS)
-    double iqm;                 ///< its isolation distance ID_g (sqrt), 0 if undefined
-    double amp;                 ///< robust amplitude of all detections (approach guard), noise RMS units
+    uint32_t dominant;         ///< its track id
+    uint8_t dominant_cluster;  ///< its cluster in the leading model (1..G)
+    double snr;                ///< its SNR (peak-to-peak / noise RMS)
+    double iqm;                ///< its isolation distance ID_g (sqrt), 0 if undefined
+    double amp;                ///< robust amplitude of all detections (approach guard), noise RMS units
 } md_process_out_t;
 
 /// Tracker selected by the `tracker` parameter (0 MHTC, 1 MAP-NN, 2 ML-NN,

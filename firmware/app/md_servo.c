@@ -12,9 +12,9 @@
 #define CAL_BIT_MID 0x40000000u  /* bit 30 */
 #define CAL_BIT_HALF 0x80000000u /* bit 31 */
 #define US_PER_MS 1000u
-#define STEP_LEARN_GAIN 0.5      /* weight of a new observation of the step length */
-#define STEP_LEARN_MIN_UM 4.0    /* a move shorter than this says little about the step (Hall noise) */
-#define STEP_EST_RANGE 4.0       /* the estimate stays within [nominal / 4, nominal * 4] */
+#define STEP_LEARN_GAIN 0.5   /* weight of a new observation of the step length */
+#define STEP_LEARN_MIN_UM 4.0 /* a move shorter than this says little about the step (Hall noise) */
+#define STEP_EST_RANGE 4.0    /* the estimate stays within [nominal / 4, nominal * 4] */
 #define NM_PER_UM 1000.0
 
 void md_servo_config_default(md_servo_config_t *cfg)
@@ -225,8 +225,7 @@ md_status_t md_servo_depth_um(const md_servo_t *s, double *depth_um)
 /* Moves                                                               */
 /* ------------------------------------------------------------------ */
 
-md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um,
-                           double step_max_um)
+md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um, double step_max_um)
 {
     if (s == NULL || !isfinite(target_um) || !isfinite(win_min_um) || !isfinite(win_max_um) ||
         !(win_min_um < win_max_um) || !(step_max_um > 0.0) || !isfinite(step_max_um)) {
@@ -309,9 +308,15 @@ void md_servo_clear_fault(md_servo_t *s)
     }
 }
 
-bool md_servo_latched(const md_servo_t *s) { return s != NULL && s->motion_latched; }
+bool md_servo_latched(const md_servo_t *s)
+{
+    return s != NULL && s->motion_latched;
+}
 
-bool md_servo_busy(const md_servo_t *s) { return s != NULL && s->phase != MD_SERVO_IDLE; }
+bool md_servo_busy(const md_servo_t *s)
+{
+    return s != NULL && s->phase != MD_SERVO_IDLE;
+}
 
 void md_servo_act_status(md_servo_t *s, uint8_t cmd_seq, uint8_t state, uint8_t end_stops, uint16_t steps_done)
 {
@@ -548,9 +553,7 @@ md_servo_action_t md_servo_next(md_servo_t *s)
     case MD_SERVO_MEASURE: return measure(s);
     case MD_SERVO_MOVING: return a; /* waiting for the final ACT_STATUS */
     case MD_SERVO_IDLE:
-    default:
-        a.kind = (s->result != MD_SERVO_R_NONE) ? MD_SERVO_A_FINISHED : MD_SERVO_A_NONE;
-        return a;
+    default: a.kind = (s->result != MD_SERVO_R_NONE) ? MD_SERVO_A_FINISHED : MD_SERVO_A_NONE; return a;
     }
 }
 

@@ -72,18 +72,18 @@
 /// A later command of the move carries at most this × the steps commanded
 /// before it (10, 30, 120, 480 ...: a 30 µm move takes 5 commands).
 #define MD_SERVO_CHUNK_GROWTH 3u
-#define MD_SERVO_CAL_INDEX_MID 0xF0u  ///< HALL_CALIB CoeffIndex of code_mid (DBC comment)
-#define MD_SERVO_CAL_INDEX_HALF 0xF1u ///< HALL_CALIB CoeffIndex of code_half
+#define MD_SERVO_CAL_INDEX_MID 0xF0u   ///< HALL_CALIB CoeffIndex of code_mid (DBC comment)
+#define MD_SERVO_CAL_INDEX_HALF 0xF1u  ///< HALL_CALIB CoeffIndex of code_half
 
 /// Tunables (md_params rows servo_*).
 typedef struct {
-    double tol_um;       ///< converged when |target - depth| <= tol_um (> 0; 2 µm)
-    uint8_t max_iter;    ///< step commands per move, 1..MD_SERVO_ITER_MAX
-    uint8_t avg_n;       ///< readings averaged per measurement, 1..MD_SERVO_AVG_MAX
-    double step_nm;      ///< initial estimate of one step's travel, both directions (> 0)
-    uint16_t rate_hz;    ///< ACT_CMD StepRate_hz (>= 1)
-    uint32_t wait_us;    ///< time to let pass when fresh readings are missing (> 0)
-    uint8_t max_waits;   ///< consecutive such waits before MD_SERVO_R_NO_SENSOR (>= 1)
+    double tol_um;      ///< converged when |target - depth| <= tol_um (> 0; 2 µm)
+    uint8_t max_iter;   ///< step commands per move, 1..MD_SERVO_ITER_MAX
+    uint8_t avg_n;      ///< readings averaged per measurement, 1..MD_SERVO_AVG_MAX
+    double step_nm;     ///< initial estimate of one step's travel, both directions (> 0)
+    uint16_t rate_hz;   ///< ACT_CMD StepRate_hz (>= 1)
+    uint32_t wait_us;   ///< time to let pass when fresh readings are missing (> 0)
+    uint8_t max_waits;  ///< consecutive such waits before MD_SERVO_R_NO_SENSOR (>= 1)
 } md_servo_config_t;
 
 /// What the servo wants the caller to do now.
@@ -96,7 +96,7 @@ typedef enum {
 
 typedef struct {
     md_servo_action_kind_t kind;
-    uint8_t direction;   ///< MD_ACT_DIR_ADVANCE (deeper) or MD_ACT_DIR_RETRACT
+    uint8_t direction;  ///< MD_ACT_DIR_ADVANCE (deeper) or MD_ACT_DIR_RETRACT
     uint16_t steps;
     uint16_t rate_hz;
     uint32_t wait_us;
@@ -104,39 +104,39 @@ typedef struct {
 
 /// How the last move ended.
 typedef enum {
-    MD_SERVO_R_NONE = 0,        ///< no move finished yet / in progress
-    MD_SERVO_R_CONVERGED,       ///< within tol_um of the (clamped) target
-    MD_SERVO_R_NOT_CONVERGED,   ///< max_iter commands spent
-    MD_SERVO_R_STALL,           ///< actuator stalled or the Hall code did not follow
-    MD_SERVO_R_END_STOP,        ///< an end stop was hit
-    MD_SERVO_R_FAULT,           ///< actuator fault (e.g. its e-stop) or a command refused
-    MD_SERVO_R_NO_SENSOR,       ///< no calibration, or no fresh readings in time
-    MD_SERVO_R_OUT_OF_REGION,   ///< measured depth left the allowed region (never planned)
-    MD_SERVO_R_ABORTED,         ///< md_servo_abort()
-    MD_SERVO_R_RUNAWAY          ///< motion against or far beyond the command, twice: motion latched off
+    MD_SERVO_R_NONE = 0,       ///< no move finished yet / in progress
+    MD_SERVO_R_CONVERGED,      ///< within tol_um of the (clamped) target
+    MD_SERVO_R_NOT_CONVERGED,  ///< max_iter commands spent
+    MD_SERVO_R_STALL,          ///< actuator stalled or the Hall code did not follow
+    MD_SERVO_R_END_STOP,       ///< an end stop was hit
+    MD_SERVO_R_FAULT,          ///< actuator fault (e.g. its e-stop) or a command refused
+    MD_SERVO_R_NO_SENSOR,      ///< no calibration, or no fresh readings in time
+    MD_SERVO_R_OUT_OF_REGION,  ///< measured depth left the allowed region (never planned)
+    MD_SERVO_R_ABORTED,        ///< md_servo_abort()
+    MD_SERVO_R_RUNAWAY         ///< motion against or far beyond the command, twice: motion latched off
 } md_servo_result_t;
 
 typedef enum {
     MD_SERVO_IDLE = 0,
-    MD_SERVO_MEASURE,   ///< collecting fresh readings
-    MD_SERVO_MOVING     ///< a step command is out; waiting for its final ACT_STATUS
+    MD_SERVO_MEASURE,  ///< collecting fresh readings
+    MD_SERVO_MOVING    ///< a step command is out; waiting for its final ACT_STATUS
 } md_servo_phase_t;
 
 /// Counters (never reset except by init).
 typedef struct {
     uint32_t moves, converged, not_converged, stalls, end_stops, faults, no_sensor, out_of_region, aborted;
-    uint32_t commands;      ///< ACT_CMD steps issued
-    uint32_t steps;         ///< steps commanded in total
-    uint32_t clamped;       ///< targets clamped into the region
-    uint32_t bad_readings;  ///< readings that the calibration turned into non-finite depths
-    uint32_t budget_limited;///< commands shortened by the per-move travel budget
-    uint32_t chunk_limited; ///< commands shortened by the probe / chunk growth bound
-    uint32_t rechecks;      ///< implausible displacements measured again
-    uint32_t runaways;      ///< MD_SERVO_R_RUNAWAY (motion latched off)
-    uint32_t suspect_refusals; ///< moves refused because the sensor still repeats its stuck code
-    uint32_t latched_refusals; ///< md_servo_begin refused while motion is latched off
-    uint32_t cal_unconfirmed;  ///< calibration values that differed from the one in use (held back)
-    uint32_t cal_changes;      ///< calibration values changed after a confirming repetition
+    uint32_t commands;          ///< ACT_CMD steps issued
+    uint32_t steps;             ///< steps commanded in total
+    uint32_t clamped;           ///< targets clamped into the region
+    uint32_t bad_readings;      ///< readings that the calibration turned into non-finite depths
+    uint32_t budget_limited;    ///< commands shortened by the per-move travel budget
+    uint32_t chunk_limited;     ///< commands shortened by the probe / chunk growth bound
+    uint32_t rechecks;          ///< implausible displacements measured again
+    uint32_t runaways;          ///< MD_SERVO_R_RUNAWAY (motion latched off)
+    uint32_t suspect_refusals;  ///< moves refused because the sensor still repeats its stuck code
+    uint32_t latched_refusals;  ///< md_servo_begin refused while motion is latched off
+    uint32_t cal_unconfirmed;   ///< calibration values that differed from the one in use (held back)
+    uint32_t cal_changes;       ///< calibration values changed after a confirming repetition
 } md_servo_stats_t;
 
 /// The servo of one electrode (caller-owned; ~0.8 kB).
@@ -145,41 +145,41 @@ typedef struct {
     /* calibration: staged until every coefficient, code_mid and code_half arrived */
     double cal_coef[MD_SERVO_CAL_MAX];
     double cal_mid, cal_half;
-    uint8_t cal_count;          ///< CoeffCount of the staged set
-    uint32_t cal_have;          ///< bit k: coefficient k received; bits 30/31 mid/half
+    uint8_t cal_count;  ///< CoeffCount of the staged set
+    uint32_t cal_have;  ///< bit k: coefficient k received; bits 30/31 mid/half
     bool calibrated;
-    double cal_pend[MD_SERVO_CAL_MAX + 2u]; ///< changed values awaiting confirmation; [MAX] mid, [MAX+1] half
-    uint32_t cal_pend_have;     ///< bits as cal_have: which cal_pend entries are set
+    double cal_pend[MD_SERVO_CAL_MAX + 2u];  ///< changed values awaiting confirmation; [MAX] mid, [MAX+1] half
+    uint32_t cal_pend_have;                  ///< bits as cal_have: which cal_pend entries are set
     /* readings (raw codes; converted when averaged, so a new calibration applies at once) */
     uint16_t code[MD_SERVO_AVG_MAX];
     uint8_t code_head, code_count;
-    uint8_t fresh;              ///< readings since the last md_servo_clear_readings()
+    uint8_t fresh;  ///< readings since the last md_servo_clear_readings()
     /* learned travel of one step, µm, [0] advance, [1] retract */
     double step_um[2];
     /* the move in progress */
     md_servo_phase_t phase;
     md_servo_result_t result;
-    double target_um;           ///< requested target
-    double goal_um;             ///< target clamped into the region
+    double target_um;  ///< requested target
+    double goal_um;    ///< target clamped into the region
     double region_lo_um, region_hi_um;
     double win_min_um, win_max_um, step_max_um;
-    bool have_start;            ///< d0 measured (region known)
-    double start_um;            ///< d0
-    double depth_um;            ///< latest depth measured by a move (this one or the last)
-    bool have_depth;            ///< depth_um is set
-    double before_um;           ///< depth measured before the command in flight
-    uint8_t iter;               ///< commands issued in this move
-    uint8_t waits;              ///< consecutive waits for readings
-    uint8_t no_motion;          ///< consecutive moves without Hall change
-    uint8_t cmd_seq;            ///< Seq of the command in flight
+    bool have_start;    ///< d0 measured (region known)
+    double start_um;    ///< d0
+    double depth_um;    ///< latest depth measured by a move (this one or the last)
+    bool have_depth;    ///< depth_um is set
+    double before_um;   ///< depth measured before the command in flight
+    uint8_t iter;       ///< commands issued in this move
+    uint8_t waits;      ///< consecutive waits for readings
+    uint8_t no_motion;  ///< consecutive moves without Hall change
+    uint8_t cmd_seq;    ///< Seq of the command in flight
     uint8_t cmd_dir;
     uint16_t cmd_steps;
-    double cmd_travel_um[2];    ///< travel commanded in this move, [0] advance, [1] retract (worst-case step)
-    uint32_t move_steps;        ///< steps commanded in this move (sizes the next chunk)
-    bool rechecking;            ///< an implausible displacement is being measured again
-    bool hall_suspect;          ///< the last stall showed no Hall change at all
-    uint16_t stuck_code;        ///< the code the suspect sensor repeated
-    bool motion_latched;        ///< runaway seen: no move until md_servo_init / md_servo_clear_fault
+    double cmd_travel_um[2];  ///< travel commanded in this move, [0] advance, [1] retract (worst-case step)
+    uint32_t move_steps;      ///< steps commanded in this move (sizes the next chunk)
+    bool rechecking;          ///< an implausible displacement is being measured again
+    bool hall_suspect;        ///< the last stall showed no Hall change at all
+    uint16_t stuck_code;      ///< the code the suspect sensor repeated
+    bool motion_latched;      ///< runaway seen: no move until md_servo_init / md_servo_clear_fault
     md_servo_stats_t stats;
 } md_servo_t;
 
@@ -231,8 +231,7 @@ md_status_t md_servo_depth_um(const md_servo_t *s, double *depth_um);
 /// before anything moves). MD_E_ARG on non-finite or inconsistent arguments
 /// (nothing changes), MD_E_STATE if a move is in progress or motion is
 /// latched off after a runaway (counted). O(1).
-md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um,
-                           double step_max_um);
+md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um, double step_max_um);
 
 /// The caller sent the ACT_CMD step of the last MD_SERVO_A_STEP with this Seq. O(1).
 void md_servo_sent(md_servo_t *s, uint8_t seq);

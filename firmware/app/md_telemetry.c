@@ -7,16 +7,19 @@
 
 #include "md_can.h"
 
-#define SPIKES_HEADER_BYTES 6u  /* Electrode, Count, Cycle, Part */
-#define SPIKES_ENTRY_BYTES 5u   /* Sample (24 bit) + Track (int16) */
-#define WAVE_HEADER_BYTES 4u    /* Electrode, Part, TrackId */
+#define SPIKES_HEADER_BYTES 6u /* Electrode, Count, Cycle, Part */
+#define SPIKES_ENTRY_BYTES 5u  /* Sample (24 bit) + Track (int16) */
+#define WAVE_HEADER_BYTES 4u   /* Electrode, Part, TrackId */
 #define INT16_LIMIT 32767.0
 
 _Static_assert(SPIKES_HEADER_BYTES + MD_TLM_SPIKES_PER_PART * SPIKES_ENTRY_BYTES <= MD_CAN_TLM_SPIKES_LENGTH,
                "TLM_SPIKES layout of the DBC");
 _Static_assert(WAVE_HEADER_BYTES + 2u * MD_TLM_WAVE_PER_PART <= MD_CAN_TLM_WAVE_LENGTH, "TLM_WAVE layout");
 
-static float finite_f(double v) { return isfinite(v) ? (float)v : 0.0f; }
+static float finite_f(double v)
+{
+    return isfinite(v) ? (float)v : 0.0f;
+}
 
 static void put_u16(uint8_t *p, uint16_t v)
 {
@@ -153,8 +156,7 @@ static md_status_t send_hyps(md_node_t *node, uint8_t e, const md_electrode_t *e
         m.log_prob = finite_f(hy->log_prob);
         m.num_tracks = hy->n_tracks;
         m.model_g = hy->g;
-        if (md_node_send(node, MD_CAN_TLM_HYP_FRAME_ID, buf, md_can_tlm_hyp_pack(buf, &m, sizeof buf), true) !=
-            MD_OK) {
+        if (md_node_send(node, MD_CAN_TLM_HYP_FRAME_ID, buf, md_can_tlm_hyp_pack(buf, &m, sizeof buf), true) != MD_OK) {
             result = MD_E_IO;
         }
     }

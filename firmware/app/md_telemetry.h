@@ -13,12 +13,12 @@
 #include "md_cycle.h"
 #include "md_node.h"
 
-#define MD_TLM_PHASE_REQUESTED 0u   ///< TLM_CYCLE Phase: recording requested
-#define MD_TLM_PHASE_PROCESSED 1u   ///< TLM_CYCLE Phase: interval processed (or skipped)
-#define MD_TLM_SPIKES_PER_PART 11u  ///< TLM_SPIKES entries per frame
-#define MD_TLM_WAVE_PER_PART 28u    ///< TLM_WAVE samples per frame
-#define MD_TLM_TRACK_OUTLIER (-1)   ///< TLM_SPIKES Track: outlier or false cluster
-#define MD_TLM_TRACK_UNLABELLED (-2) ///< TLM_SPIKES Track: no label for this spike
+#define MD_TLM_PHASE_REQUESTED 0u     ///< TLM_CYCLE Phase: recording requested
+#define MD_TLM_PHASE_PROCESSED 1u     ///< TLM_CYCLE Phase: interval processed (or skipped)
+#define MD_TLM_SPIKES_PER_PART 11u    ///< TLM_SPIKES entries per frame
+#define MD_TLM_WAVE_PER_PART 28u      ///< TLM_WAVE samples per frame
+#define MD_TLM_TRACK_OUTLIER (-1)     ///< TLM_SPIKES Track: outlier or false cluster
+#define MD_TLM_TRACK_UNLABELLED (-2)  ///< TLM_SPIKES Track: no label for this spike
 
 /// TLM_CYCLE of electrode e.
 md_status_t md_tlm_cycle(md_node_t *node, uint8_t e, const md_electrode_t *el, uint8_t phase, uint32_t num_samples);

@@ -10,32 +10,32 @@
 
 /* ---- the rig ------------------------------------------------------------ */
 #ifndef MD_ELECTRODES
-#define MD_ELECTRODES 3u            ///< electrodes driven by one controller (thesis drive: 3)
+#define MD_ELECTRODES 3u  ///< electrodes driven by one controller (thesis drive: 3)
 #endif
 
 /* ---- signal chain (thesis §2.2.2) --------------------------------------- */
 #ifndef MD_MAX_SPIKES
-#define MD_MAX_SPIKES 512u          ///< detected spikes kept per recording interval
+#define MD_MAX_SPIKES 512u  ///< detected spikes kept per recording interval
 #endif
 #ifndef MD_WAVE_LEN_MAX
-#define MD_WAVE_LEN_MAX 48u         ///< samples per spike window (thesis: d_w = 23 at 20 kHz; 1.6 ms at 30 kHz = 48)
+#define MD_WAVE_LEN_MAX 48u  ///< samples per spike window (thesis: d_w = 23 at 20 kHz; 1.6 ms at 30 kHz = 48)
 #endif
 #ifndef MD_MAX_NOISE_SNIPPETS
 #define MD_MAX_NOISE_SNIPPETS 256u  ///< spike-free noise windows kept per interval
 #endif
 #ifndef MD_FEAT_DIM_MAX
-#define MD_FEAT_DIM_MAX 3u          ///< PCA feature dimension d (thesis: 2; at most 3)
+#define MD_FEAT_DIM_MAX 3u  ///< PCA feature dimension d (thesis: 2; at most 3)
 #endif
 #ifndef MD_WAVELET_SCALES_MAX
-#define MD_WAVELET_SCALES_MAX 8u    ///< wavelet scales examined by the detector
+#define MD_WAVELET_SCALES_MAX 8u  ///< wavelet scales examined by the detector
 #endif
 
 /* ---- clustering (thesis ch. 3) ------------------------------------------ */
 #ifndef MD_G_MAX
-#define MD_G_MAX 4u                 ///< most Gaussian clusters in one model (thesis Table 4.1)
+#define MD_G_MAX 4u  ///< most Gaussian clusters in one model (thesis Table 4.1)
 #endif
 #ifndef MD_EM_MAX_ITER
-#define MD_EM_MAX_ITER 200u         ///< bound on EM iterations per fit
+#define MD_EM_MAX_ITER 200u  ///< bound on EM iterations per fit
 #endif
 #ifndef MD_EM_TOL_REL
 /// EM stops when |Δ log-posterior| ≤ MD_EM_TOL_REL · max(1, |log-posterior|).
@@ -48,18 +48,19 @@
 
 /* ---- tracking (thesis ch. 4) -------------------------------------------- */
 #ifndef MD_L_MAX
-#define MD_L_MAX 8u                 ///< global hypotheses kept (thesis Table 4.1: L = 8)
+#define MD_L_MAX 8u  ///< global hypotheses kept (thesis Table 4.1: L = 8)
 #endif
 #ifndef MD_MAX_TARGETS
-#define MD_MAX_TARGETS 8u           ///< targets (tracks) alive in one hypothesis
+#define MD_MAX_TARGETS 8u  ///< targets (tracks) alive in one hypothesis
 #endif
 #ifndef MD_TRACK_POOL
-#define MD_TRACK_POOL 20u           ///< shared track records per electrode, referenced by hypotheses (exhaustion: least probable child dropped, counted)
+#define MD_TRACK_POOL \
+    20u  ///< shared track records per electrode, referenced by hypotheses (exhaustion: least probable child dropped, counted)
 #endif
 
 /* ---- protocol ------------------------------------------------------------ */
 #ifndef MD_PARAM_COUNT_MAX
-#define MD_PARAM_COUNT_MAX 64u      ///< parameters reachable by get/set
+#define MD_PARAM_COUNT_MAX 64u  ///< parameters reachable by get/set
 #endif
 
 /* ---- consistency --------------------------------------------------------- */

@@ -19,32 +19,35 @@
 #include "simnode_world.h"
 
 #define SIMPROC_HB_PERIOD_US ((uint64_t)MD_CAN_HEARTBEAT_ACT_CYCLE_TIME_MS * 1000u)
-#define SIMPROC_MAX_WAIT_US 100000   ///< longest receive wait: signals and heartbeats stay prompt
-#define SIMPROC_PACE_BURST 64u       ///< frames a paced sender may send back to back
-#define SIMPROC_TX_RETRIES 200u      ///< 1 ms waits on a full transmit queue before giving up
+#define SIMPROC_MAX_WAIT_US 100000  ///< longest receive wait: signals and heartbeats stay prompt
+#define SIMPROC_PACE_BURST 64u      ///< frames a paced sender may send back to back
+#define SIMPROC_TX_RETRIES 200u     ///< 1 ms waits on a full transmit queue before giving up
 
 static const md_node_id_t SIMPROC_NODES[3] = {MD_NODE_ACT, MD_NODE_HALL, MD_NODE_FE};
 
 typedef struct {
-    md_bus_t raw_bus;                    ///< the endpoint as opened
-    md_bus_fault_t fault[SCENARIO_BUS_FAULTS_MAX];   ///< the scenario's bus faults, nested around it
+    md_bus_t raw_bus;                               ///< the endpoint as opened
+    md_bus_fault_t fault[SCENARIO_BUS_FAULTS_MAX];  ///< the scenario's bus faults, nested around it
     uint32_t n_fault;
-    md_bus_t *busp;                      ///< what the plant uses: the outermost wrapper or raw_bus
+    md_bus_t *busp;  ///< what the plant uses: the outermost wrapper or raw_bus
     simnode_plant_t plant;
-    uint64_t origin_us;                  ///< wall time of simulated time 0 (realtime)
+    uint64_t origin_us;  ///< wall time of simulated time 0 (realtime)
     uint64_t next_hb_us;
-    uint64_t node_origin_us[3];          ///< wall time of each node's last (re)boot
+    uint64_t node_origin_us[3];  ///< wall time of each node's last (re)boot
     uint32_t node_resets_seen[3];
     uint32_t pace_fps;
     uint64_t pace_t0_us, pace_sent, last_tx_us;
     uint64_t tx_frames, tx_errors, tx_retries, heartbeats, hb_silenced;
-    uint64_t tx_abandoned;               ///< frames of the batch in progress not sent after SIGINT/SIGTERM
+    uint64_t tx_abandoned;  ///< frames of the batch in progress not sent after SIGINT/SIGTERM
     uint32_t since_hb_check;
 } simproc_t;
 
 static volatile sig_atomic_t g_stop = 0;
 
-static void on_signal(int sig) { g_stop = sig; }
+static void on_signal(int sig)
+{
+    g_stop = sig;
+}
 
 static uint64_t mono_us(void)
 {
@@ -64,11 +67,11 @@ static void send_heartbeats(simproc_t *sp, uint64_t now)
     simnode_plant_silence_at(&sp->plant, sp->plant.now_us);
     for (uint32_t i = 0; i < 3u; i++) {
         const simnode_t *n = simnode_plant_node(&sp->plant, SIMPROC_NODES[i]);
-        if (n->resets != sp->node_resets_seen[i]) {   /* an NMT reset restarts the uptime */
+        if (n->resets != sp->node_resets_seen[i]) { /* an NMT reset restarts the uptime */
             sp->node_resets_seen[i] = n->resets;
             sp->node_origin_us[i] = now;
         }
-        if (n->silent) {   /* injected node silence: heartbeat included */
+        if (n->silent) { /* injected node silence: heartbeat included */
             sp->hb_silenced++;
             continue;
         }
@@ -157,8 +160,7 @@ static void print_stats(simproc_t *sp)
             " heartbeats, tx errors %" PRIu64 ", retries %" PRIu64 ", not sent after the stop signal %" PRIu64
             "; bus rx overflow %" PRIu64 "\n",
             (double)sp->plant.now_us * 1e-6, ps->rx_frames, ps->rx_ignored, ps->rx_malformed, ps->rx_foreign_clock,
-            ps->steps,
-            sp->tx_frames, sp->heartbeats, sp->tx_errors, sp->tx_retries, sp->tx_abandoned,
+            ps->steps, sp->tx_frames, sp->heartbeats, sp->tx_errors, sp->tx_retries, sp->tx_abandoned,
             sp->raw_bus.stats.rx_overflow);
     char bus_stats[200];
     (void)md_bus_stats_format(&sp->raw_bus.stats, bus_stats, sizeof bus_stats);
@@ -168,8 +170,8 @@ static void print_stats(simproc_t *sp)
         fprintf(stderr,
                 "microdrive-sim: node %u state %u: rx %" PRIu64 ", malformed %" PRIu64 ", refused %" PRIu64
                 ", tx %" PRIu64 ", tx errors %" PRIu64 ", emcy %" PRIu64 "\n",
-                (unsigned)n->id, (unsigned)n->state, n->stats.rx_frames, n->stats.rx_malformed,
-                n->stats.rx_refused, n->stats.tx_frames, n->stats.tx_errors, n->stats.emcy_sent);
+                (unsigned)n->id, (unsigned)n->state, n->stats.rx_frames, n->stats.rx_malformed, n->stats.rx_refused,
+                n->stats.tx_frames, n->stats.tx_errors, n->stats.emcy_sent);
     }
 }
 
@@ -177,7 +179,7 @@ static void install_signals(void)
 {
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;   /* no SA_RESTART: a waiting receive returns at once */
+    sa.sa_handler = on_signal; /* no SA_RESTART: a waiting receive returns at once */
     (void)sigemptyset(&sa.sa_mask);
     (void)sigaction(SIGINT, &sa, NULL);
     (void)sigaction(SIGTERM, &sa, NULL);
@@ -201,7 +203,7 @@ static int64_t wait_budget_us(const simproc_t *sp, uint64_t now)
 /* Serves the bus until a signal, the simulated duration or a bus error. */
 static int simproc_loop(simproc_t *sp, uint64_t duration_us)
 {
-    for (;;) {   /* runs until told to stop: the process's main loop */
+    for (;;) { /* runs until told to stop: the process's main loop */
         const uint64_t now = mono_us();
         heartbeat_check(sp, now);
         if (!sp->plant.cfg.lockstep) {
@@ -248,7 +250,7 @@ static int serve(simproc_t *sp, const sim_cli_t *cli, const scenario_t *sc, simn
     }
     fprintf(stderr, "microdrive-sim: nodes 2, 3, 4; %u electrodes; %s mode; seed %" PRIu64 "\n",
             (unsigned)simnode_world_electrodes(world), cli->realtime ? "realtime" : "lockstep", seed);
-    send_heartbeats(sp, sp->origin_us);   /* boot-up messages (NodeState 0) */
+    send_heartbeats(sp, sp->origin_us); /* boot-up messages (NodeState 0) */
     sp->next_hb_us = sp->origin_us + SIMPROC_HB_PERIOD_US;
     simnode_plant_start(&sp->plant);
     install_signals();
@@ -260,7 +262,7 @@ static int serve(simproc_t *sp, const sim_cli_t *cli, const scenario_t *sc, simn
 static int64_t fault_clock(void *ctx)
 {
     const simproc_t *sp = ctx;
-    return (int64_t)sp->plant.now_us;   /* fault windows are simulated time */
+    return (int64_t)sp->plant.now_us; /* fault windows are simulated time */
 }
 
 /* The scenario's bus faults (scenario.h): one md_bus_fault wrapper each
@@ -316,7 +318,7 @@ static int run_bus(const sim_cli_t *cli, const scenario_t *sc, uint64_t seed)
         return 1;
     }
     simnode_world_set_truth(world, truth);
-    simproc_t *sp = calloc(1u, sizeof *sp);   /* md_bus_t must not move while open */
+    simproc_t *sp = calloc(1u, sizeof *sp); /* md_bus_t must not move while open */
     int rc = (sp == NULL) ? -ENOMEM : md_bus_open(&sp->raw_bus, cli->bus, err, sizeof err);
     if (rc == 0 && sp->raw_bus.kind == MD_BUS_INPROC) {
         md_bus_close(&sp->raw_bus);
@@ -332,7 +334,7 @@ static int run_bus(const sim_cli_t *cli, const scenario_t *sc, uint64_t seed)
             rc = serve(sp, cli, sc, world, seed);
             print_faults(sp, sc);
         }
-        md_bus_close(sp->busp);   /* closes the wrappers' chain and the endpoint */
+        md_bus_close(sp->busp); /* closes the wrappers' chain and the endpoint */
     }
     free(sp);
     if (truth != NULL) {

@@ -39,7 +39,10 @@ static const char USAGE[] =
     "Heartbeats (0x702-0x704) go out every 100 ms of wall time in both modes.\n"
     "SIGINT/SIGTERM end the process cleanly (exit 0). Exit 1: runtime error, 2: usage.\n";
 
-const char *sim_cli_usage(void) { return USAGE; }
+const char *sim_cli_usage(void)
+{
+    return USAGE;
+}
 
 static int cli_fail(char *msg, size_t msglen, const char *what, const char *arg)
 {
@@ -148,7 +151,7 @@ int sim_cli_parse(sim_cli_t *cli, int argc, char *const argv[], char *msg, size_
             continue;
         }
         if (i + 1 >= argc) {
-            sim_cli_t scratch = *cli;   /* known option without its value, or unknown? */
+            sim_cli_t scratch = *cli; /* known option without its value, or unknown? */
             return cli_fail(msg, msglen,
                             (cli_valued(&scratch, opt, "", NULL, 0u) != 0) ? "missing value after" : "unknown option",
                             opt);

@@ -9,19 +9,19 @@
 #include <stdint.h>
 
 typedef struct {
-    const char *scenario;        ///< --scenario FILE (required unless --help)
+    const char *scenario;  ///< --scenario FILE (required unless --help)
     bool seed_given;
-    uint64_t seed;               ///< --seed N (default: the scenario's seed)
-    const char *bus;             ///< --bus SPEC (default "auto")
-    bool realtime;               ///< --realtime
-    const char *export_dir;      ///< --export-recording DIR (NULL: join the bus)
-    const char *truth;           ///< --truth FILE (NULL: no ground truth)
-    double hall_rate_hz;         ///< --hall-rate HZ (0: the scenario's)
-    uint32_t calib_period_ms;    ///< --calib-period-ms MS (default 10000)
-    bool autostart;              ///< false with --no-autostart
-    double duration_s;           ///< --duration-s S (<0: the scenario's; 0: no limit)
-    uint32_t pace_fps;           ///< --pace FPS, lockstep frame rate cap (0: none)
-    bool help;                   ///< --help / -h
+    uint64_t seed;             ///< --seed N (default: the scenario's seed)
+    const char *bus;           ///< --bus SPEC (default "auto")
+    bool realtime;             ///< --realtime
+    const char *export_dir;    ///< --export-recording DIR (NULL: join the bus)
+    const char *truth;         ///< --truth FILE (NULL: no ground truth)
+    double hall_rate_hz;       ///< --hall-rate HZ (0: the scenario's)
+    uint32_t calib_period_ms;  ///< --calib-period-ms MS (default 10000)
+    bool autostart;            ///< false with --no-autostart
+    double duration_s;         ///< --duration-s S (<0: the scenario's; 0: no limit)
+    uint32_t pace_fps;         ///< --pace FPS, lockstep frame rate cap (0: none)
+    bool help;                 ///< --help / -h
 } sim_cli_t;
 
 /// Parses argv into *cli (defaults first). Returns 0, or -1 with a one-line

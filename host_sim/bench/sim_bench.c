@@ -80,8 +80,7 @@ int main(int argc, char **argv)
         if (done / interval != before) {
             const int dir = ((done / interval / 40u) % 2u == 0u) ? 1 : -1;
             for (uint32_t e = 0u; e < w->n_electrodes; ++e) {
-                (void)sim_electrode_command(&w->el[e], actuator_steps_for(&w->el[e].act.p, 10.0 * dir), dir,
-                                            2000.0);
+                (void)sim_electrode_command(&w->el[e], actuator_steps_for(&w->el[e].act.p, 10.0 * dir), dir, 2000.0);
             }
         }
     }

@@ -63,7 +63,7 @@ static md_status_t record_span(export_state_t *x, size_t n, uint64_t file_pos)
                 continue;
             }
             if (n_rows >= EXPORT_GT_CAP) {
-                return MD_E_CAPACITY;   /* never drop truth silently */
+                return MD_E_CAPACITY; /* never drop truth silently */
             }
             x->rows[n_rows++] = (gt_row_t){file_pos + (x->gt[k].sample - abs0), e, x->gt[k].neuron_id};
         }
@@ -102,8 +102,8 @@ static void scripted_move(sim_world_t *w, const scenario_export_t *ex)
     sim_world_advance_s(w, ex->settle_s);
 }
 
-static void write_interval_json(export_state_t *x, uint32_t i, uint64_t start, size_t n, double t0,
-                                const double *d0, const double *d1, const double *hall)
+static void write_interval_json(export_state_t *x, uint32_t i, uint64_t start, size_t n, double t0, const double *d0,
+                                const double *d1, const double *hall)
 {
     const uint32_t nc = x->world.n_electrodes;
     const double fs = x->world.el[0].fs;

@@ -18,14 +18,13 @@ void actuator_default_params(actuator_params_t *p)
 md_status_t actuator_params_check(const actuator_params_t *p)
 {
     const bool ok = p->step_nm > 0.0 && p->step_nm <= 10000.0 && p->step_cv >= 0.0 && p->step_cv <= 1.0 &&
-                    p->retract_ratio > 0.0 && p->retract_ratio <= 2.0 && p->miss_prob >= 0.0 &&
-                    p->slip_prob >= 0.0 && p->miss_prob + p->slip_prob <= 1.0 && p->slip_nm >= 0.0 &&
-                    p->max_rate_hz > 0.0 && p->travel_um > 0.0;
+                    p->retract_ratio > 0.0 && p->retract_ratio <= 2.0 && p->miss_prob >= 0.0 && p->slip_prob >= 0.0 &&
+                    p->miss_prob + p->slip_prob <= 1.0 && p->slip_nm >= 0.0 && p->max_rate_hz > 0.0 &&
+                    p->travel_um > 0.0;
     return ok ? MD_OK : MD_E_ARG;
 }
 
-md_status_t actuator_init(actuator_t *a, const actuator_params_t *p, double start_um, uint64_t seed,
-                          uint32_t electrode)
+md_status_t actuator_init(actuator_t *a, const actuator_params_t *p, double start_um, uint64_t seed, uint32_t electrode)
 {
     if (a == NULL || p == NULL || actuator_params_check(p) != MD_OK || !isfinite(start_um)) {
         return MD_E_ARG;
@@ -71,7 +70,7 @@ md_status_t actuator_command(actuator_t *a, double t_now_s, uint32_t count, int 
 static double actuator_step_length_um(actuator_t *a, int dir)
 {
     const double u = sim_rng_uniform(&a->rng);
-    const double g = sim_rng_normal(&a->rng);   /* drawn every step: the stream stays aligned */
+    const double g = sim_rng_normal(&a->rng); /* drawn every step: the stream stays aligned */
     if (u < a->p.miss_prob) {
         a->missed_steps++;
         return 0.0;
@@ -97,7 +96,7 @@ static bool actuator_apply_step(actuator_t *a, double t_step)
         a->fault_stalls++;
         return false;
     }
-    double len_um = actuator_step_length_um(a, dir);   /* drawn anyway: healthy stream aligned */
+    double len_um = actuator_step_length_um(a, dir); /* drawn anyway: healthy stream aligned */
     if (fault == SIM_STEP_SLIP) {
         a->fault_slips++;
         len_um = -(double)dir * a->faults.act_slip_um;
@@ -149,7 +148,10 @@ double actuator_advance_to(actuator_t *a, double t_s)
     return a->position_um - start;
 }
 
-actuator_status_t actuator_status(const actuator_t *a) { return a->st; }
+actuator_status_t actuator_status(const actuator_t *a)
+{
+    return a->st;
+}
 
 uint32_t actuator_steps_for(const actuator_params_t *p, double distance_um)
 {

@@ -41,28 +41,28 @@ typedef enum { ACTUATOR_IDLE = 0, ACTUATOR_MOVING = 1, ACTUATOR_STALLED = 2 } ac
 /// What the actuator reports (the driver node publishes this).
 typedef struct {
     actuator_state_t state;
-    int direction;              ///< +1 advance (deeper), -1 retract, of the last command
-    uint32_t steps_requested;   ///< of the last command
-    uint32_t steps_done;        ///< of the last command (a stalled step is not done)
-    bool at_upper_stop;         ///< carrier on the upper stop (position 0)
-    bool at_lower_stop;         ///< carrier on the lower stop (position travel_um)
-    uint32_t stall_count;       ///< stalls since start
-    uint32_t rate_clamped_count;///< commands whose rate was above max_rate_hz
+    int direction;                ///< +1 advance (deeper), -1 retract, of the last command
+    uint32_t steps_requested;     ///< of the last command
+    uint32_t steps_done;          ///< of the last command (a stalled step is not done)
+    bool at_upper_stop;           ///< carrier on the upper stop (position 0)
+    bool at_lower_stop;           ///< carrier on the lower stop (position travel_um)
+    uint32_t stall_count;         ///< stalls since start
+    uint32_t rate_clamped_count;  ///< commands whose rate was above max_rate_hz
 } actuator_status_t;
 
 /// The actuator; plain data, owned by the caller.
 typedef struct {
     actuator_params_t p;
     sim_rng_t rng;
-    double position_um;     ///< true carrier position (ground truth)
-    double t_s;             ///< model time: everything up to here is executed
-    double t_cmd_s;         ///< start time of the current command
-    double rate_hz;         ///< step rate of the current command
-    double t_last_step_s;   ///< time of the most recent executed step (-1: none)
+    double position_um;    ///< true carrier position (ground truth)
+    double t_s;            ///< model time: everything up to here is executed
+    double t_cmd_s;        ///< start time of the current command
+    double rate_hz;        ///< step rate of the current command
+    double t_last_step_s;  ///< time of the most recent executed step (-1: none)
     actuator_status_t st;
-    uint64_t missed_steps, slips;  ///< counters of the model's imperfections
-    sim_model_faults_t faults;     ///< injected stall/slip windows (actuator_set_faults)
-    sim_rng_t fault_rng;           ///< their own stream: the healthy one stays aligned
+    uint64_t missed_steps, slips;        ///< counters of the model's imperfections
+    sim_model_faults_t faults;           ///< injected stall/slip windows (actuator_set_faults)
+    sim_rng_t fault_rng;                 ///< their own stream: the healthy one stays aligned
     uint64_t fault_stalls, fault_slips;  ///< injected events that happened
 } actuator_t;
 

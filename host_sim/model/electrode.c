@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define RANDOM_NEURON_ID0 100u   /* random neurons are numbered from here */
+#define RANDOM_NEURON_ID0 100u /* random neurons are numbered from here */
 
 void sim_random_neurons_default(sim_random_neurons_t *r)
 {
@@ -70,8 +70,9 @@ static void electrode_die(sim_electrode_t *el, uint32_t k, double t_s, double d_
     n->died_s = t_s;
     n->next_s = INFINITY;
     if (el->truth != NULL) {
-        (void)fprintf(el->truth, "{\"type\":\"death\",\"electrode\":%" PRIu32 ",\"neuron\":%" PRIu32
-                                 ",\"t_s\":%.6f,\"distance_um\":%.3f}\n",
+        (void)fprintf(el->truth,
+                      "{\"type\":\"death\",\"electrode\":%" PRIu32 ",\"neuron\":%" PRIu32
+                      ",\"t_s\":%.6f,\"distance_um\":%.3f}\n",
                       el->index, n->id, t_s, d_um);
     }
 }
@@ -115,8 +116,7 @@ static void electrode_update_model(sim_electrode_t *el, uint64_t s, bool render)
 
 md_status_t sim_electrode_init(sim_electrode_t *el, const sim_electrode_config_t *cfg, uint64_t seed, uint32_t index)
 {
-    if (el == NULL || cfg == NULL || cfg->n_neurons > SIM_MAX_NEURONS ||
-        signal_params_check(&cfg->signal) != MD_OK ||
+    if (el == NULL || cfg == NULL || cfg->n_neurons > SIM_MAX_NEURONS || signal_params_check(&cfg->signal) != MD_OK ||
         neuron_model_params_check(&cfg->neuron_model, cfg->signal.sample_rate_hz) != MD_OK) {
         return MD_E_ARG;
     }
@@ -144,7 +144,8 @@ md_status_t sim_electrode_init(sim_electrode_t *el, const sim_electrode_config_t
     el->mua_len = sim_mua_template(el->fs, el->mua_tmpl, &energy);
     el->art_len = sim_artifact_template(el->fs, el->art_tmpl);
     const signal_params_t *sp = &cfg->signal;
-    el->mua_next_s = (sp->mua_rate_hz > 0.0) ? sim_rng_exponential(&el->mua_rng, 1.0 / sp->mua_rate_hz) : (double)INFINITY;
+    el->mua_next_s = (sp->mua_rate_hz > 0.0) ? sim_rng_exponential(&el->mua_rng, 1.0 / sp->mua_rate_hz)
+                                             : (double)INFINITY;
     el->art_next_s = (sp->large_artifact_rate_hz > 0.0)
                          ? sim_rng_exponential(&el->art_rng, 1.0 / sp->large_artifact_rate_hz)
                          : (double)INFINITY;
@@ -161,9 +162,15 @@ md_status_t sim_electrode_init(sim_electrode_t *el, const sim_electrode_config_t
     return MD_OK;
 }
 
-double sim_electrode_time_s(const sim_electrode_t *el) { return (double)el->cursor / el->fs; }
+double sim_electrode_time_s(const sim_electrode_t *el)
+{
+    return (double)el->cursor / el->fs;
+}
 
-double sim_electrode_tip_um(const sim_electrode_t *el) { return el->act.position_um; }
+double sim_electrode_tip_um(const sim_electrode_t *el)
+{
+    return el->act.position_um;
+}
 
 static void push_pending(sim_electrode_t *el, uint64_t sample, int32_t id, double amp)
 {
@@ -272,7 +279,7 @@ static size_t deliver(sim_electrode_t *el, uint64_t end, sim_gt_spike_t *gt, siz
             continue;
         }
         if (e.sample < el->cursor) {
-            continue;   /* trough before the recording started: not in it */
+            continue; /* trough before the recording started: not in it */
         }
         if (gt_n < gt_cap) {
             gt[gt_n++] = e;
@@ -281,8 +288,8 @@ static size_t deliver(sim_electrode_t *el, uint64_t end, sim_gt_spike_t *gt, siz
         }
         if (el->truth != NULL) {
             (void)fprintf(el->truth,
-                          "{\"type\":\"spike\",\"electrode\":%" PRIu32 ",\"sample\":%" PRIu64
-                          ",\"neuron\":%" PRId32 ",\"amp_uv\":%.2f}\n",
+                          "{\"type\":\"spike\",\"electrode\":%" PRIu32 ",\"sample\":%" PRIu64 ",\"neuron\":%" PRId32
+                          ",\"amp_uv\":%.2f}\n",
                           el->index, e.sample, e.neuron_id, e.amp_uv);
         }
     }

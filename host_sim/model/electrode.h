@@ -29,22 +29,22 @@
 #include "model/signal.h"
 #include "model/tissue.h"
 
-#define SIM_MAX_NEURONS 64u     ///< neurons per electrode (explicit + random)
-#define SIM_BLOCK 256u          ///< samples between slow-model updates
-#define SIM_ACC_LEN 1024u       ///< overlap-add ring (>= SIM_BLOCK + longest window)
-#define SIM_PENDING_MAX 2048u   ///< rendered spikes not yet delivered
+#define SIM_MAX_NEURONS 64u    ///< neurons per electrode (explicit + random)
+#define SIM_BLOCK 256u         ///< samples between slow-model updates
+#define SIM_ACC_LEN 1024u      ///< overlap-add ring (>= SIM_BLOCK + longest window)
+#define SIM_PENDING_MAX 2048u  ///< rendered spikes not yet delivered
 
 _Static_assert((SIM_ACC_LEN & (SIM_ACC_LEN - 1u)) == 0u, "ring length must be a power of two");
 _Static_assert(SIM_ACC_LEN >= SIM_BLOCK + 2u * SIM_WAVE_MAX, "ring must hold a block plus a window");
 
 /// Random neurons placed around the track at session start.
 typedef struct {
-    uint32_t count;          ///< default 0
-    double depth_min_um;     ///< default 500
-    double depth_max_um;     ///< default 5000
-    double radius_um;        ///< lateral placement radius (default 120 um)
-    double amp_min_uv, amp_max_uv;   ///< default 150..500
-    double rate_min_hz, rate_max_hz; ///< log-uniform, default 1..30
+    uint32_t count;                   ///< default 0
+    double depth_min_um;              ///< default 500
+    double depth_max_um;              ///< default 5000
+    double radius_um;                 ///< lateral placement radius (default 120 um)
+    double amp_min_uv, amp_max_uv;    ///< default 150..500
+    double rate_min_hz, rate_max_hz;  ///< log-uniform, default 1..30
 } sim_random_neurons_t;
 
 /// Everything that defines one electrode.
@@ -54,32 +54,32 @@ typedef struct {
     tissue_params_t tissue;
     signal_params_t signal;
     neuron_model_params_t neuron_model;
-    double start_um;                      ///< initial tip depth (default 1000)
-    uint32_t n_neurons;                   ///< explicit neurons
+    double start_um;     ///< initial tip depth (default 1000)
+    uint32_t n_neurons;  ///< explicit neurons
     neuron_params_t neurons[SIM_MAX_NEURONS];
     sim_random_neurons_t random_neurons;
-    sim_model_faults_t faults;            ///< injected plant faults (default: none)
+    sim_model_faults_t faults;  ///< injected plant faults (default: none)
 } sim_electrode_config_t;
 
 /// One ground-truth spike.
 typedef struct {
-    uint64_t sample;     ///< trough sample (absolute)
-    int32_t neuron_id;   ///< -1: large artifact (not a neuron)
-    double amp_uv;       ///< its peak-to-peak amplitude
+    uint64_t sample;    ///< trough sample (absolute)
+    int32_t neuron_id;  ///< -1: large artifact (not a neuron)
+    double amp_uv;      ///< its peak-to-peak amplitude
 } sim_gt_spike_t;
 
 /// Ground truth of one neuron at the electrode's current time.
 typedef struct {
     uint32_t id;
     double x_um, y_um;
-    double depth_um;          ///< apparent depth = tissue depth + tissue displacement
+    double depth_um;  ///< apparent depth = tissue depth + tissue displacement
     bool alive;
-    double died_s;            ///< -1 when alive
-    double distance_um;       ///< tip to soma
-    double closest_um;        ///< smallest tip-soma distance so far (along the path, as the damage check)
-    double snr;               ///< true SNR at the tip's current depth (0 when dead)
-    double snr_peak_depth_um; ///< tip depth of the maximum of its SNR-vs-depth curve
-    double snr_peak;          ///< SNR there
+    double died_s;             ///< -1 when alive
+    double distance_um;        ///< tip to soma
+    double closest_um;         ///< smallest tip-soma distance so far (along the path, as the damage check)
+    double snr;                ///< true SNR at the tip's current depth (0 when dead)
+    double snr_peak_depth_um;  ///< tip depth of the maximum of its SNR-vs-depth curve
+    double snr_peak;           ///< SNR there
 } sim_neuron_truth_t;
 
 typedef struct {
@@ -91,10 +91,10 @@ typedef struct {
     uint32_t n_neurons;
     neuron_t neurons[SIM_MAX_NEURONS];
     double tmpl[SIM_MAX_NEURONS][SIM_WAVE_MAX];
-    double tmpl_ptp[SIM_MAX_NEURONS];   ///< ptp (uV) of each current template
+    double tmpl_ptp[SIM_MAX_NEURONS];  ///< ptp (uV) of each current template
     bool in_range[SIM_MAX_NEURONS];
     double prev_dz[SIM_MAX_NEURONS];
-    double closest_um[SIM_MAX_NEURONS]; ///< closest approach so far, per neuron (ground truth)
+    double closest_um[SIM_MAX_NEURONS];  ///< closest approach so far, per neuron (ground truth)
     sim_rng_t noise_rng, mua_rng, art_rng;
     sim_noise_filter_t filt;
     double fs;
@@ -109,11 +109,11 @@ typedef struct {
     uint64_t model_sample;    ///< sample of the last slow-model update
     sim_gt_spike_t pending[SIM_PENDING_MAX];
     size_t n_pending;
-    uint64_t gt_dropped;      ///< truth entries lost to full buffers (counted, never silent)
-    uint64_t adc_clipped;     ///< samples saturated by the ADC
+    uint64_t gt_dropped;                 ///< truth entries lost to full buffers (counted, never silent)
+    uint64_t adc_clipped;                ///< samples saturated by the ADC
     sim_hall_fault_state_t hall_fault;   ///< injected Hall faults (cfg.faults)
     sim_signal_fault_state_t sig_fault;  ///< injected signal faults (cfg.faults)
-    FILE *truth;              ///< optional JSON-lines truth sink (not owned)
+    FILE *truth;                         ///< optional JSON-lines truth sink (not owned)
 } sim_electrode_t;
 
 void sim_electrode_default_config(sim_electrode_config_t *c);

@@ -21,10 +21,10 @@ void hall_default_params(hall_params_t *p)
 
 md_status_t hall_params_check(const hall_params_t *p)
 {
-    const bool ok = isfinite(p->center_um) && p->length_um > 0.0 && p->amplitude_codes > 0.0 &&
-                    p->adc_bits >= 8u && p->adc_bits <= 24u && p->noise_codes >= 0.0 &&
-                    isfinite(p->drift_codes_per_hour) && p->drift_amp_codes >= 0.0 && p->drift_period_s > 0.0 &&
-                    p->report_rate_hz > 0.0 && p->cal_degree >= 1u && p->cal_degree <= HALL_CAL_MAX_DEGREE;
+    const bool ok = isfinite(p->center_um) && p->length_um > 0.0 && p->amplitude_codes > 0.0 && p->adc_bits >= 8u &&
+                    p->adc_bits <= 24u && p->noise_codes >= 0.0 && isfinite(p->drift_codes_per_hour) &&
+                    p->drift_amp_codes >= 0.0 && p->drift_period_s > 0.0 && p->report_rate_hz > 0.0 &&
+                    p->cal_degree >= 1u && p->cal_degree <= HALL_CAL_MAX_DEGREE;
     return ok ? MD_OK : MD_E_ARG;
 }
 
@@ -121,7 +121,7 @@ md_status_t hall_init(hall_sensor_t *h, const hall_params_t *p, double travel_um
     const double full = ldexp(1.0, (int)p->adc_bits) - 1.0;
     const double c0 = hall_ideal_code(p, 0.0), c1 = hall_ideal_code(p, travel_um);
     if (c0 < 0.0 || c1 > full || !(c1 - c0 > 1.0)) {
-        return MD_E_NUMERIC;   /* saturates over the travel: no unique inverse */
+        return MD_E_NUMERIC; /* saturates over the travel: no unique inverse */
     }
     hall_calibration_t *cal = &h->cal;
     cal->degree = p->cal_degree;

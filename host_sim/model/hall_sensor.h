@@ -26,25 +26,25 @@
 #define HALL_CAL_POINTS 257u  ///< fit points over the travel
 
 typedef struct {
-    double center_um;           ///< depth of the characteristic's inflection (default 2800)
-    double length_um;           ///< tanh length scale (default 3000)
-    double offset_codes;        ///< code at the inflection (default 32768)
-    double amplitude_codes;     ///< tanh amplitude (default 30000)
-    uint32_t adc_bits;          ///< ADC resolution (default 16; 8..24)
-    double noise_codes;         ///< white noise sigma in codes (default 2.0: ~0.2-0.45 um)
-    double drift_codes_per_hour;///< linear thermal creep (default 2.0)
-    double drift_amp_codes;     ///< slow sinusoidal thermal term amplitude (default 3.0)
-    double drift_period_s;      ///< its period (default 1800 s)
-    double report_rate_hz;      ///< how often the sensor node reports (default 100 Hz)
-    uint32_t cal_degree;        ///< calibration polynomial degree (default 9; 1..11)
+    double center_um;             ///< depth of the characteristic's inflection (default 2800)
+    double length_um;             ///< tanh length scale (default 3000)
+    double offset_codes;          ///< code at the inflection (default 32768)
+    double amplitude_codes;       ///< tanh amplitude (default 30000)
+    uint32_t adc_bits;            ///< ADC resolution (default 16; 8..24)
+    double noise_codes;           ///< white noise sigma in codes (default 2.0: ~0.2-0.45 um)
+    double drift_codes_per_hour;  ///< linear thermal creep (default 2.0)
+    double drift_amp_codes;       ///< slow sinusoidal thermal term amplitude (default 3.0)
+    double drift_period_s;        ///< its period (default 1800 s)
+    double report_rate_hz;        ///< how often the sensor node reports (default 100 Hz)
+    uint32_t cal_degree;          ///< calibration polynomial degree (default 9; 1..11)
 } hall_params_t;
 
 /// Calibration handed to the controller: code -> depth.
 typedef struct {
     uint32_t degree;
-    double code_mid, code_half;               ///< x = (code - code_mid) / code_half
-    double coef[HALL_CAL_MAX_DEGREE + 1u];    ///< depth_um = sum coef[k] x^k
-    double max_fit_error_um;                  ///< worst residual over the fit points
+    double code_mid, code_half;             ///< x = (code - code_mid) / code_half
+    double coef[HALL_CAL_MAX_DEGREE + 1u];  ///< depth_um = sum coef[k] x^k
+    double max_fit_error_um;                ///< worst residual over the fit points
 } hall_calibration_t;
 
 typedef struct {

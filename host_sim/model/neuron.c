@@ -55,22 +55,38 @@ static double neuron_mean_gap_s(const neuron_params_t *p)
 md_status_t neuron_params_check(const neuron_params_t *p, const char **why)
 {
     const char *w = NULL;
-    if (!(p->amp_uv >= 0.0 && p->amp_uv <= 5000.0)) w = "amp_uv must be in [0, 5000]";
-    else if (!(p->trough_ms >= 0.02 && p->trough_ms <= 1.0)) w = "trough_ms must be in [0.02, 1]";
-    else if (!(p->repol_ms >= 0.02 && p->repol_ms <= 2.0)) w = "repol_ms must be in [0.02, 2]";
-    else if (!(p->repol_ratio >= 0.0 && p->repol_ratio <= 2.0)) w = "repol_ratio must be in [0, 2]";
-    else if (!(p->rate_hz > 0.0 && p->rate_hz <= 200.0)) w = "rate_hz must be in (0, 200]";
-    else if (!(p->refractory_ms >= 0.5 && p->refractory_ms <= 20.0)) w = "refractory_ms must be in [0.5, 20]";
-    else if (!(p->burst_prob >= 0.0 && p->burst_prob <= 1.0)) w = "burst_prob must be in [0, 1]";
-    else if (p->burst_spikes < 1u || p->burst_spikes > 10u) w = "burst_spikes must be in [1, 10]";
-    else if (!(p->burst_isi_ms * 0.8 >= p->refractory_ms)) w = "burst_isi_ms * 0.8 must be >= refractory_ms";
-    else if (!(p->burst_amp_decay > 0.0 && p->burst_amp_decay <= 1.0)) w = "burst_amp_decay must be in (0, 1]";
-    else if (!(p->amp_jitter >= 0.0 && p->amp_jitter <= 0.5)) w = "amp_jitter must be in [0, 0.5]";
-    else if (!(p->active_mean_s >= 0.0 && p->silent_mean_s >= 0.0)) w = "active_mean_s/silent_mean_s must be >= 0";
-    else if (!(p->appear_s >= 0.0 && p->disappear_s >= 0.0)) w = "appear_s/disappear_s must be >= 0";
-    else if (!isfinite(p->x_um) || !isfinite(p->y_um) || !isfinite(p->depth_um)) w = "position must be finite";
-    else if (!isfinite(p->drift_um_per_min) || !(p->drift_start_s >= 0.0)) w = "bad drift";
-    else if (!(neuron_mean_gap_s(p) > 0.0)) w = "rate_hz too high for refractory_ms and burst settings";
+    if (!(p->amp_uv >= 0.0 && p->amp_uv <= 5000.0))
+        w = "amp_uv must be in [0, 5000]";
+    else if (!(p->trough_ms >= 0.02 && p->trough_ms <= 1.0))
+        w = "trough_ms must be in [0.02, 1]";
+    else if (!(p->repol_ms >= 0.02 && p->repol_ms <= 2.0))
+        w = "repol_ms must be in [0.02, 2]";
+    else if (!(p->repol_ratio >= 0.0 && p->repol_ratio <= 2.0))
+        w = "repol_ratio must be in [0, 2]";
+    else if (!(p->rate_hz > 0.0 && p->rate_hz <= 200.0))
+        w = "rate_hz must be in (0, 200]";
+    else if (!(p->refractory_ms >= 0.5 && p->refractory_ms <= 20.0))
+        w = "refractory_ms must be in [0.5, 20]";
+    else if (!(p->burst_prob >= 0.0 && p->burst_prob <= 1.0))
+        w = "burst_prob must be in [0, 1]";
+    else if (p->burst_spikes < 1u || p->burst_spikes > 10u)
+        w = "burst_spikes must be in [1, 10]";
+    else if (!(p->burst_isi_ms * 0.8 >= p->refractory_ms))
+        w = "burst_isi_ms * 0.8 must be >= refractory_ms";
+    else if (!(p->burst_amp_decay > 0.0 && p->burst_amp_decay <= 1.0))
+        w = "burst_amp_decay must be in (0, 1]";
+    else if (!(p->amp_jitter >= 0.0 && p->amp_jitter <= 0.5))
+        w = "amp_jitter must be in [0, 0.5]";
+    else if (!(p->active_mean_s >= 0.0 && p->silent_mean_s >= 0.0))
+        w = "active_mean_s/silent_mean_s must be >= 0";
+    else if (!(p->appear_s >= 0.0 && p->disappear_s >= 0.0))
+        w = "appear_s/disappear_s must be >= 0";
+    else if (!isfinite(p->x_um) || !isfinite(p->y_um) || !isfinite(p->depth_um))
+        w = "position must be finite";
+    else if (!isfinite(p->drift_um_per_min) || !(p->drift_start_s >= 0.0))
+        w = "bad drift";
+    else if (!(neuron_mean_gap_s(p) > 0.0))
+        w = "rate_hz too high for refractory_ms and burst settings";
     if (why != NULL) {
         *why = w;
     }

@@ -35,19 +35,19 @@
 #include "md_status.h"
 #include "model/sim_rng.h"
 
-#define SIM_WAVE_MAX 128u   ///< samples of one rendered spike window, at most
+#define SIM_WAVE_MAX 128u  ///< samples of one rendered spike window, at most
 
 typedef enum { NEURON_BIPHASIC = 0, NEURON_TRIPHASIC = 1 } neuron_shape_t;
 
 /// Model parameters shared by all neurons of a session.
 typedef struct {
-    double falloff_um;     ///< default 30 um
-    double falloff_exp;    ///< default 2
-    double range_um;       ///< default 150 um: beyond this a neuron is not rendered
-    double damage_um;      ///< default 12 um: closer than this the neuron dies
-    double shape_mix;      ///< default 0.6: largest weight of the far basis
-    double window_pre_ms;  ///< default 0.6 ms before the trough
-    double window_post_ms; ///< default 1.4 ms after the trough
+    double falloff_um;      ///< default 30 um
+    double falloff_exp;     ///< default 2
+    double range_um;        ///< default 150 um: beyond this a neuron is not rendered
+    double damage_um;       ///< default 12 um: closer than this the neuron dies
+    double shape_mix;       ///< default 0.6: largest weight of the far basis
+    double window_pre_ms;   ///< default 0.6 ms before the trough
+    double window_post_ms;  ///< default 1.4 ms after the trough
 } neuron_model_params_t;
 
 /// Per-neuron parameters.
@@ -79,13 +79,13 @@ typedef struct {
     uint32_t id;
     sim_rng_t rng;
     bool alive;
-    double died_s;            ///< time of death (-1: alive)
-    double next_s;            ///< time of the next spike (trough), INFINITY: none
-    double next_amp;          ///< amplitude factor of that spike
+    double died_s;    ///< time of death (-1: alive)
+    double next_s;    ///< time of the next spike (trough), INFINITY: none
+    double next_amp;  ///< amplitude factor of that spike
     uint32_t burst_left, burst_index;
     double active_until_s;
-    double mean_gap_s;        ///< m of the ISI law
-    uint32_t wave_len, wave_pre; ///< window length and trough index (samples)
+    double mean_gap_s;            ///< m of the ISI law
+    uint32_t wave_len, wave_pre;  ///< window length and trough index (samples)
     double basis_near[SIM_WAVE_MAX], basis_far[SIM_WAVE_MAX];
 } neuron_t;
 

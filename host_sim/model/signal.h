@@ -23,25 +23,25 @@
 #define SIM_SHORT_WAVE_MAX 96u  ///< MUA / artifact template samples, at most
 
 typedef struct {
-    double sample_rate_hz;        ///< default 30000 (20000..50000)
-    double adc_gain_uv;           ///< uV per LSB, default 0.195 (16-bit, +-6.4 mV)
-    double noise_uv;              ///< band-limited thermal RMS, default 6 uV
-    double band_low_hz;           ///< default 300 Hz
-    double band_high_hz;          ///< default 6000 Hz
-    double mua_rate_hz;           ///< distant-unit events, default 400 Hz
-    double mua_amp_uv;            ///< their mean ptp, default 15 uV
-    double motion_artifact_uv;    ///< ringing amplitude after motion, default 150 uV
-    double motion_artifact_tau_s; ///< its decay, default 0.05 s
-    double motion_artifact_hz;    ///< its frequency, default 700 Hz
-    double large_artifact_rate_hz;///< default 0.02 Hz
-    double large_artifact_uv;     ///< default 800 uV ptp
+    double sample_rate_hz;          ///< default 30000 (20000..50000)
+    double adc_gain_uv;             ///< uV per LSB, default 0.195 (16-bit, +-6.4 mV)
+    double noise_uv;                ///< band-limited thermal RMS, default 6 uV
+    double band_low_hz;             ///< default 300 Hz
+    double band_high_hz;            ///< default 6000 Hz
+    double mua_rate_hz;             ///< distant-unit events, default 400 Hz
+    double mua_amp_uv;              ///< their mean ptp, default 15 uV
+    double motion_artifact_uv;      ///< ringing amplitude after motion, default 150 uV
+    double motion_artifact_tau_s;   ///< its decay, default 0.05 s
+    double motion_artifact_hz;      ///< its frequency, default 700 Hz
+    double large_artifact_rate_hz;  ///< default 0.02 Hz
+    double large_artifact_uv;       ///< default 800 uV ptp
 } signal_params_t;
 
 /// Band-limiting filter state (HP1 then biquad LP).
 typedef struct {
     double hp_a, hp_x1, hp_y1;
     double b0, b1, b2, a1, a2, z1, z2;
-    double in_scale;   ///< white sigma that yields noise_uv at the output
+    double in_scale;  ///< white sigma that yields noise_uv at the output
 } sim_noise_filter_t;
 
 void signal_default_params(signal_params_t *p);

@@ -9,7 +9,7 @@ _Static_assert(SIM_FAULT_STORM_TMPL_MAX >= SIM_SHORT_WAVE_MAX, "storm template h
 
 void sim_model_faults_default(sim_model_faults_t *f)
 {
-    memset(f, 0, sizeof *f);   /* every window [0, 0): empty */
+    memset(f, 0, sizeof *f); /* every window [0, 0): empty */
     f->hall_glitch_prob = 0.1;
     f->hall_glitch_codes = 2000.0;
     f->act_slip_prob = 0.2;
@@ -18,7 +18,10 @@ void sim_model_faults_default(sim_model_faults_t *f)
     f->storm_amp_uv = 3000.0;
 }
 
-static bool window_set(const sim_window_t *w) { return w->to_s > w->from_s; }
+static bool window_set(const sim_window_t *w)
+{
+    return w->to_s > w->from_s;
+}
 
 bool sim_model_faults_any(const sim_model_faults_t *f)
 {
@@ -37,7 +40,7 @@ uint32_t sim_fault_hall_apply(const sim_model_faults_t *f, sim_hall_fault_state_
 {
     if (sim_window_active(&f->hall_stuck, t_s) && s->have_last) {
         s->stuck_reads++;
-        return s->last_code;   /* frozen: the sensor repeats its last good value */
+        return s->last_code; /* frozen: the sensor repeats its last good value */
     }
     s->last_code = code;
     s->have_last = true;

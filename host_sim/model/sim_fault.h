@@ -25,29 +25,29 @@
 #define SIM_FAULT_STORM_TMPL_MAX 96u
 
 typedef struct {
-    double from_s, to_s;   ///< active for from_s <= t < to_s
+    double from_s, to_s;  ///< active for from_s <= t < to_s
 } sim_window_t;
 
 typedef struct {
-    sim_window_t hall_glitch;    ///< a reading jumps by +-hall_glitch_codes with hall_glitch_prob
-    double hall_glitch_prob;     ///< per reading (default 0.1)
-    double hall_glitch_codes;    ///< jump (default 2000 codes, ~100+ um)
-    sim_window_t hall_stuck;     ///< readings frozen at the last one before the window
-    sim_window_t act_stall;      ///< no step moves; the actuator reports STALLED
-    sim_window_t act_slip;       ///< a step slips back act_slip_um with act_slip_prob
-    double act_slip_prob;        ///< per step (default 0.2)
-    double act_slip_um;          ///< backward motion of a slip (default 2 um)
-    sim_window_t adc_saturation; ///< every sample pinned to the ADC rail of its sign
-    sim_window_t artifact_storm; ///< large transients at storm_rate_hz, storm_amp_uv ptp
-    double storm_rate_hz;        ///< default 20 Hz
-    double storm_amp_uv;         ///< default 3000 uV
+    sim_window_t hall_glitch;     ///< a reading jumps by +-hall_glitch_codes with hall_glitch_prob
+    double hall_glitch_prob;      ///< per reading (default 0.1)
+    double hall_glitch_codes;     ///< jump (default 2000 codes, ~100+ um)
+    sim_window_t hall_stuck;      ///< readings frozen at the last one before the window
+    sim_window_t act_stall;       ///< no step moves; the actuator reports STALLED
+    sim_window_t act_slip;        ///< a step slips back act_slip_um with act_slip_prob
+    double act_slip_prob;         ///< per step (default 0.2)
+    double act_slip_um;           ///< backward motion of a slip (default 2 um)
+    sim_window_t adc_saturation;  ///< every sample pinned to the ADC rail of its sign
+    sim_window_t artifact_storm;  ///< large transients at storm_rate_hz, storm_amp_uv ptp
+    double storm_rate_hz;         ///< default 20 Hz
+    double storm_amp_uv;          ///< default 3000 uV
 } sim_model_faults_t;
 
 /// Hall fault state (per sensor).
 typedef struct {
     sim_rng_t rng;
     bool have_last;
-    uint32_t last_code;     ///< last reading before a stuck window
+    uint32_t last_code;  ///< last reading before a stuck window
     uint64_t glitches, stuck_reads;
 } sim_hall_fault_state_t;
 
@@ -56,9 +56,9 @@ typedef struct {
     sim_rng_t rng;
     double tmpl[SIM_FAULT_STORM_TMPL_MAX];
     uint32_t tmpl_len;
-    double next_event_s;                          ///< next storm transient (<0: not drawn)
-    uint64_t start[SIM_FAULT_STORM_ACTIVE_MAX];   ///< first sample of each live transient
-    double amp[SIM_FAULT_STORM_ACTIVE_MAX];       ///< its ptp (uV), signed
+    double next_event_s;                         ///< next storm transient (<0: not drawn)
+    uint64_t start[SIM_FAULT_STORM_ACTIVE_MAX];  ///< first sample of each live transient
+    double amp[SIM_FAULT_STORM_ACTIVE_MAX];      ///< its ptp (uV), signed
     uint32_t n_active;
     uint64_t storm_events, saturated_samples, storm_dropped;
 } sim_signal_fault_state_t;
@@ -69,7 +69,10 @@ typedef enum { SIM_STEP_NORMAL = 0, SIM_STEP_STALL = 1, SIM_STEP_SLIP = 2 } sim_
 /// Every window empty; magnitudes at their defaults.
 void sim_model_faults_default(sim_model_faults_t *f);
 /// True if t_s is inside w.
-static inline bool sim_window_active(const sim_window_t *w, double t_s) { return t_s >= w->from_s && t_s < w->to_s; }
+static inline bool sim_window_active(const sim_window_t *w, double t_s)
+{
+    return t_s >= w->from_s && t_s < w->to_s;
+}
 /// True if any window of f is non-empty.
 bool sim_model_faults_any(const sim_model_faults_t *f);
 

@@ -10,7 +10,10 @@ static uint64_t splitmix64(uint64_t *x)
     return z ^ (z >> 31);
 }
 
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+static uint64_t rotl(uint64_t x, int k)
+{
+    return (x << k) | (x >> (64 - k));
+}
 
 void sim_rng_init(sim_rng_t *rng, uint64_t seed, sim_rng_kind_t kind, uint32_t electrode, uint32_t index)
 {
@@ -41,9 +44,15 @@ uint64_t sim_rng_u64(sim_rng_t *rng)
     return result;
 }
 
-double sim_rng_uniform(sim_rng_t *rng) { return (double)(sim_rng_u64(rng) >> 11) * 0x1.0p-53; }
+double sim_rng_uniform(sim_rng_t *rng)
+{
+    return (double)(sim_rng_u64(rng) >> 11) * 0x1.0p-53;
+}
 
-double sim_rng_uniform_pos(sim_rng_t *rng) { return ((double)(sim_rng_u64(rng) >> 11) + 1.0) * 0x1.0p-53; }
+double sim_rng_uniform_pos(sim_rng_t *rng)
+{
+    return ((double)(sim_rng_u64(rng) >> 11) + 1.0) * 0x1.0p-53;
+}
 
 double sim_rng_normal(sim_rng_t *rng)
 {
@@ -58,4 +67,7 @@ double sim_rng_normal(sim_rng_t *rng)
     return r * cos(a);
 }
 
-double sim_rng_exponential(sim_rng_t *rng, double mean) { return -mean * log(sim_rng_uniform_pos(rng)); }
+double sim_rng_exponential(sim_rng_t *rng, double mean)
+{
+    return -mean * log(sim_rng_uniform_pos(rng));
+}

@@ -22,13 +22,13 @@ typedef enum {
     SIM_RNG_ARTIFACT = 6,
     SIM_RNG_PLACEMENT = 7,
     SIM_RNG_NEURON = 8,
-    SIM_RNG_FAULT = 9       ///< model faults (index: 0 Hall, 1 actuator, 2 signal)
+    SIM_RNG_FAULT = 9  ///< model faults (index: 0 Hall, 1 actuator, 2 signal)
 } sim_rng_kind_t;
 
 /// One stream's state. Plain data: copy it to fork a stream.
 typedef struct {
     uint64_t s[4];
-    double spare_normal;   ///< second value of the last Box-Muller pair
+    double spare_normal;  ///< second value of the last Box-Muller pair
     int has_spare;
 } sim_rng_t;
 

@@ -47,8 +47,9 @@ void sim_world_set_truth(sim_world_t *w, FILE *f)
     if (f == NULL || w->n_electrodes == 0u) {
         return;
     }
-    (void)fprintf(f, "{\"type\":\"session\",\"seed\":%" PRIu64 ",\"sample_rate_hz\":%.3f,\"electrodes\":%" PRIu32
-                     ",\"bg_rms_uv\":[",
+    (void)fprintf(f,
+                  "{\"type\":\"session\",\"seed\":%" PRIu64 ",\"sample_rate_hz\":%.3f,\"electrodes\":%" PRIu32
+                  ",\"bg_rms_uv\":[",
                   w->seed, w->el[0].fs, w->n_electrodes);
     for (uint32_t e = 0u; e < w->n_electrodes; ++e) {
         (void)fprintf(f, "%s%.4f", e ? "," : "", w->el[e].bg_rms_uv);
@@ -85,8 +86,8 @@ void sim_world_truth_snapshot(sim_world_t *w, const char *label)
             (void)fprintf(w->truth,
                           "%s{\"neuron\":%" PRIu32 ",\"depth_um\":%.4f,\"alive\":%s,\"distance_um\":%.4f"
                           ",\"closest_um\":%.4f,\"snr\":%.4f,\"snr_peak_depth_um\":%.4f,\"snr_peak\":%.4f}",
-                          k ? "," : "", tr[k].id, tr[k].depth_um, tr[k].alive ? "true" : "false",
-                          tr[k].distance_um, tr[k].closest_um, tr[k].snr, tr[k].snr_peak_depth_um, tr[k].snr_peak);
+                          k ? "," : "", tr[k].id, tr[k].depth_um, tr[k].alive ? "true" : "false", tr[k].distance_um,
+                          tr[k].closest_um, tr[k].snr, tr[k].snr_peak_depth_um, tr[k].snr_peak);
         }
         (void)fprintf(w->truth, "]}\n");
     }

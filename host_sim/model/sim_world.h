@@ -29,7 +29,7 @@ typedef struct {
     uint64_t seed;
     uint32_t n_electrodes;
     sim_electrode_t el[SIM_MAX_ELECTRODES];
-    FILE *truth;   ///< not owned
+    FILE *truth;  ///< not owned
 } sim_world_t;
 
 /// Builds every electrode from its configuration. ~0.4 MB per electrode:

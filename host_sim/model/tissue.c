@@ -27,8 +27,7 @@ md_status_t tissue_params_check(const tissue_params_t *p)
                     p->insert_tau_s > 0.0 && p->drag_advance >= 0.0 && p->drag_advance <= 1.0 &&
                     p->drag_retract >= 0.0 && p->drag_retract <= 1.0 && p->permanent_fraction >= 0.0 &&
                     p->permanent_fraction <= 1.0 && p->move_tau_s > 0.0 && p->max_relax_um >= 0.0 &&
-                    p->breathing_um >= 0.0 && p->breathing_hz > 0.0 && p->heartbeat_um >= 0.0 &&
-                    p->heartbeat_hz > 0.0;
+                    p->breathing_um >= 0.0 && p->breathing_hz > 0.0 && p->heartbeat_um >= 0.0 && p->heartbeat_hz > 0.0;
     return ok ? MD_OK : MD_E_ARG;
 }
 

@@ -19,26 +19,26 @@
 #include "md_status.h"
 
 typedef struct {
-    double drift_um_per_min;   ///< default 0.3 um/min
-    double drift_start_s;      ///< default 0 s
-    double insert_relax_um;    ///< default 40 um
-    double insert_tau_s;       ///< default 1800 s
-    double drag_advance;       ///< default 0.30 (fraction of an advance)
-    double drag_retract;       ///< default 0.15 (fraction of a retraction)
-    double permanent_fraction; ///< default 0.2
-    double move_tau_s;         ///< default 120 s
-    double max_relax_um;       ///< default 60 um
-    double breathing_um;       ///< default 0 (off); typical 2 um
-    double breathing_hz;       ///< default 0.3 Hz
-    double heartbeat_um;       ///< default 0 (off); typical 0.5 um
-    double heartbeat_hz;       ///< default 1.5 Hz
+    double drift_um_per_min;    ///< default 0.3 um/min
+    double drift_start_s;       ///< default 0 s
+    double insert_relax_um;     ///< default 40 um
+    double insert_tau_s;        ///< default 1800 s
+    double drag_advance;        ///< default 0.30 (fraction of an advance)
+    double drag_retract;        ///< default 0.15 (fraction of a retraction)
+    double permanent_fraction;  ///< default 0.2
+    double move_tau_s;          ///< default 120 s
+    double max_relax_um;        ///< default 60 um
+    double breathing_um;        ///< default 0 (off); typical 2 um
+    double breathing_hz;        ///< default 0.3 Hz
+    double heartbeat_um;        ///< default 0 (off); typical 0.5 um
+    double heartbeat_hz;        ///< default 1.5 Hz
 } tissue_params_t;
 
 typedef struct {
     tissue_params_t p;
-    double t_s;          ///< model time
-    double relax_um;     ///< relaxing part of the movement drag
-    double perm_um;      ///< permanent part of the movement drag
+    double t_s;       ///< model time
+    double relax_um;  ///< relaxing part of the movement drag
+    double perm_um;   ///< permanent part of the movement drag
 } tissue_t;
 
 void tissue_default_params(tissue_params_t *p);

@@ -22,7 +22,10 @@ bool simnode_boot_done(simnode_t *n)
     return n->state == MD_NODE_STATE_OPERATIONAL;
 }
 
-bool simnode_operational(const simnode_t *n) { return n->state == MD_NODE_STATE_OPERATIONAL; }
+bool simnode_operational(const simnode_t *n)
+{
+    return n->state == MD_NODE_STATE_OPERATIONAL;
+}
 
 simnode_nmt_effect_t simnode_nmt_apply(simnode_t *n, uint8_t command, uint8_t target)
 {
@@ -30,30 +33,21 @@ simnode_nmt_effect_t simnode_nmt_apply(simnode_t *n, uint8_t command, uint8_t ta
         return SIMNODE_NMT_NOT_ADDRESSED;
     }
     switch ((md_nmt_command_t)command) {
-    case MD_NMT_START:
-        n->state = MD_NODE_STATE_OPERATIONAL;
-        return SIMNODE_NMT_ENTER_OP;
-    case MD_NMT_STOP:
-        n->state = MD_NODE_STATE_STOPPED;
-        return SIMNODE_NMT_LEAVE_OP;
-    case MD_NMT_PREOP:
-        n->state = MD_NODE_STATE_PREOP;
-        return SIMNODE_NMT_LEAVE_OP;
+    case MD_NMT_START: n->state = MD_NODE_STATE_OPERATIONAL; return SIMNODE_NMT_ENTER_OP;
+    case MD_NMT_STOP: n->state = MD_NODE_STATE_STOPPED; return SIMNODE_NMT_LEAVE_OP;
+    case MD_NMT_PREOP: n->state = MD_NODE_STATE_PREOP; return SIMNODE_NMT_LEAVE_OP;
     case MD_NMT_RESET_NODE: {
         md_frame_t hb;
         n->state = MD_NODE_STATE_BOOT;
         n->fault = false;
         n->resets++;
-        simnode_heartbeat_frame(n, 0u, &hb);   /* CANopen boot-up message */
-        (void)simnode_send(n, &hb);            /* failure already counted */
+        simnode_heartbeat_frame(n, 0u, &hb); /* CANopen boot-up message */
+        (void)simnode_send(n, &hb);          /* failure already counted */
         (void)simnode_boot_done(n);
         return SIMNODE_NMT_RESET;
     }
-    case MD_NMT_CLEAR_ESTOP:
-        n->estop_latched = false;
-        return SIMNODE_NMT_CLEAR_ESTOP;
-    default:
-        return SIMNODE_NMT_NOT_ADDRESSED;  /* the plant validates commands first */
+    case MD_NMT_CLEAR_ESTOP: n->estop_latched = false; return SIMNODE_NMT_CLEAR_ESTOP;
+    default: return SIMNODE_NMT_NOT_ADDRESSED; /* the plant validates commands first */
     }
 }
 
@@ -92,7 +86,7 @@ int simnode_send(simnode_t *n, const md_frame_t *frame)
 
 int simnode_emcy(simnode_t *n, uint16_t code, uint8_t electrode, uint32_t info)
 {
-    struct md_can_emcy_act_t e;   /* every EMCY shares this layout; the id selects the node */
+    struct md_can_emcy_act_t e; /* every EMCY shares this layout; the id selects the node */
     md_frame_t f;
     uint8_t reg = 0x01u;
     if ((code & 0xFF00u) == 0x8100u || (code & 0xFF00u) == 0x8200u) {

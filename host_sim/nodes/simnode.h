@@ -40,27 +40,27 @@ typedef struct {
 
 /// The shared part of a node. Plain data, owned by the caller.
 typedef struct {
-    uint8_t id;                  ///< md_node_id_t of this node
-    md_node_state_t state;       ///< NMT state, reported in the heartbeat
-    bool autostart;              ///< enter OPERATIONAL on boot/reset without NMT start
-    bool lockstep;               ///< heartbeat flag bit2
-    bool estop_latched;          ///< heartbeat flag bit0 (only the actuator latches)
-    bool fault;                  ///< heartbeat flag bit1: a fault is present
-    bool silent;                 ///< injected fault (scenario node_silent): sends nothing, heartbeat
-                                 ///< included; the plant sets it from the scenario's windows
-    uint32_t resets;             ///< NMT resets so far (the process restarts the uptime)
-    uint32_t electrodes;         ///< reported in the heartbeat
+    uint8_t id;             ///< md_node_id_t of this node
+    md_node_state_t state;  ///< NMT state, reported in the heartbeat
+    bool autostart;         ///< enter OPERATIONAL on boot/reset without NMT start
+    bool lockstep;          ///< heartbeat flag bit2
+    bool estop_latched;     ///< heartbeat flag bit0 (only the actuator latches)
+    bool fault;             ///< heartbeat flag bit1: a fault is present
+    bool silent;            ///< injected fault (scenario node_silent): sends nothing, heartbeat
+                            ///< included; the plant sets it from the scenario's windows
+    uint32_t resets;        ///< NMT resets so far (the process restarts the uptime)
+    uint32_t electrodes;    ///< reported in the heartbeat
     simnode_stats_t stats;
     simnode_sink_t sink;
 } simnode_t;
 
 /// What an NMT command did to a node (the node-specific code reacts to it).
 typedef enum {
-    SIMNODE_NMT_NOT_ADDRESSED = 0, ///< the command targets another node
-    SIMNODE_NMT_ENTER_OP,          ///< start: node is (now or still) operational; re-announce
-    SIMNODE_NMT_LEAVE_OP,          ///< stop or pre-op: plant activity must stop
-    SIMNODE_NMT_RESET,             ///< reset: application state back to power-on
-    SIMNODE_NMT_CLEAR_ESTOP        ///< clear e-stop: the latch is released
+    SIMNODE_NMT_NOT_ADDRESSED = 0,  ///< the command targets another node
+    SIMNODE_NMT_ENTER_OP,           ///< start: node is (now or still) operational; re-announce
+    SIMNODE_NMT_LEAVE_OP,           ///< stop or pre-op: plant activity must stop
+    SIMNODE_NMT_RESET,              ///< reset: application state back to power-on
+    SIMNODE_NMT_CLEAR_ESTOP         ///< clear e-stop: the latch is released
 } simnode_nmt_effect_t;
 
 /// Initialises a node in state BOOT. O(1).

@@ -88,7 +88,7 @@ int simnode_act_on_cmd(simnode_act_t *a, const md_frame_t *f, uint64_t t_us)
     a->node.stats.rx_frames++;
     a->el[c.electrode].cmd_seq = c.seq;
     if (a->node.estop_latched && step) {
-        a->node.stats.rx_refused++;       /* acknowledged with State = fault */
+        a->node.stats.rx_refused++; /* acknowledged with State = fault */
         act_send_status(a, c.electrode);
         return -1;
     }
@@ -101,7 +101,7 @@ int simnode_act_on_cmd(simnode_act_t *a, const md_frame_t *f, uint64_t t_us)
     }
     act_send_status(a, c.electrode);
     if (step) {
-        act_schedule_status(a, t_us);    /* progress reports from the start of the move */
+        act_schedule_status(a, t_us); /* progress reports from the start of the move */
     }
     return step ? (int)c.electrode : -1;
 }
@@ -124,9 +124,7 @@ void simnode_act_on_estop(simnode_act_t *a, uint8_t source, uint64_t t_us)
 void simnode_act_on_nmt(simnode_act_t *a, simnode_nmt_effect_t effect, uint64_t t_us)
 {
     switch (effect) {
-    case SIMNODE_NMT_ENTER_OP:
-        simnode_act_announce(a, t_us);
-        break;
+    case SIMNODE_NMT_ENTER_OP: simnode_act_announce(a, t_us); break;
     case SIMNODE_NMT_LEAVE_OP:
         act_halt_all(a);
         a->next_status_us = UINT64_MAX;
@@ -147,8 +145,7 @@ void simnode_act_on_nmt(simnode_act_t *a, simnode_nmt_effect_t effect, uint64_t 
         }
         break;
     case SIMNODE_NMT_NOT_ADDRESSED:
-    default:
-        break;
+    default: break;
     }
 }
 

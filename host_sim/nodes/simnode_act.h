@@ -19,18 +19,18 @@
 
 /// Per-electrode bookkeeping of the driver.
 typedef struct {
-    uint8_t cmd_seq;                ///< Seq of the last ACT_CMD (echoed as CmdSeq)
-    uint8_t reported_state;         ///< State field last sent
-    uint8_t reported_stops;         ///< EndStops field last sent
+    uint8_t cmd_seq;         ///< Seq of the last ACT_CMD (echoed as CmdSeq)
+    uint8_t reported_state;  ///< State field last sent
+    uint8_t reported_stops;  ///< EndStops field last sent
 } simnode_act_electrode_t;
 
 typedef struct {
     simnode_t node;
     simnode_world_t *world;
-    uint32_t status_moving_ms;      ///< periodic ACT_STATUS while moving
-    uint32_t status_idle_ms;        ///< periodic ACT_STATUS otherwise
-    uint64_t next_status_us;        ///< next periodic report
-    uint8_t estop_source;           ///< EstopSource of the latching ESTOP
+    uint32_t status_moving_ms;  ///< periodic ACT_STATUS while moving
+    uint32_t status_idle_ms;    ///< periodic ACT_STATUS otherwise
+    uint64_t next_status_us;    ///< next periodic report
+    uint8_t estop_source;       ///< EstopSource of the latching ESTOP
     simnode_act_electrode_t el[SIMNODE_MAX_ELECTRODES];
 } simnode_act_t;
 

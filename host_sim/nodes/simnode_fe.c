@@ -57,12 +57,11 @@ static void fe_send_end(simnode_fe_t *fe, uint32_t e, uint16_t interval_id, uint
  * field); unused fields stay 0. */
 static void fe_fill_samples(struct md_can_rec_data_t *m, const int16_t *x, uint32_t n)
 {
-    int16_t *const slot[30] = {
-        &m->sample00, &m->sample01, &m->sample02, &m->sample03, &m->sample04, &m->sample05,
-        &m->sample06, &m->sample07, &m->sample08, &m->sample09, &m->sample10, &m->sample11,
-        &m->sample12, &m->sample13, &m->sample14, &m->sample15, &m->sample16, &m->sample17,
-        &m->sample18, &m->sample19, &m->sample20, &m->sample21, &m->sample22, &m->sample23,
-        &m->sample24, &m->sample25, &m->sample26, &m->sample27, &m->sample28, &m->sample29};
+    int16_t *const slot[30] = {&m->sample00, &m->sample01, &m->sample02, &m->sample03, &m->sample04, &m->sample05,
+                               &m->sample06, &m->sample07, &m->sample08, &m->sample09, &m->sample10, &m->sample11,
+                               &m->sample12, &m->sample13, &m->sample14, &m->sample15, &m->sample16, &m->sample17,
+                               &m->sample18, &m->sample19, &m->sample20, &m->sample21, &m->sample22, &m->sample23,
+                               &m->sample24, &m->sample25, &m->sample26, &m->sample27, &m->sample28, &m->sample29};
     for (uint32_t i = 0; i < 30u; i++) {
         *slot[i] = (i < n) ? x[i] : (int16_t)0;
     }
@@ -77,7 +76,7 @@ static void fe_send_data(simnode_fe_t *fe, uint32_t e)
     struct md_can_rec_data_t m;
     md_frame_t f;
     if (simnode_world_record_next(fe->world, e, n, x) != MD_OK) {
-        fe->node.fault = true;   /* cannot happen while the stream is active; counted if it does */
+        fe->node.fault = true; /* cannot happen while the stream is active; counted if it does */
         (void)simnode_emcy(&fe->node, (uint16_t)MD_EMCY_SOFTWARE, (uint8_t)e, (uint32_t)(int32_t)MD_E_STATE);
         memset(x, 0, sizeof x);
     }
@@ -142,9 +141,7 @@ void simnode_fe_abort(simnode_fe_t *fe, uint32_t e)
 void simnode_fe_on_nmt(simnode_fe_t *fe, simnode_nmt_effect_t effect, uint64_t t_us)
 {
     switch (effect) {
-    case SIMNODE_NMT_ENTER_OP:
-        simnode_fe_announce(fe, t_us);
-        break;
+    case SIMNODE_NMT_ENTER_OP: simnode_fe_announce(fe, t_us); break;
     case SIMNODE_NMT_LEAVE_OP:
         simnode_fe_abort(fe, UINT32_MAX);
         fe->next_info_us = UINT64_MAX;
@@ -159,8 +156,7 @@ void simnode_fe_on_nmt(simnode_fe_t *fe, simnode_nmt_effect_t effect, uint64_t t
         break;
     case SIMNODE_NMT_CLEAR_ESTOP:
     case SIMNODE_NMT_NOT_ADDRESSED:
-    default:
-        break;
+    default: break;
     }
 }
 

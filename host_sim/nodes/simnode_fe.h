@@ -33,10 +33,10 @@
 typedef struct {
     bool active;
     uint16_t interval_id;
-    uint32_t n_total;           ///< samples requested
-    uint32_t n_sent;            ///< samples already in frames
-    uint16_t seq;               ///< Seq of the next REC_DATA frame
-    uint64_t t0_us;             ///< time of sample 0
+    uint32_t n_total;  ///< samples requested
+    uint32_t n_sent;   ///< samples already in frames
+    uint16_t seq;      ///< Seq of the next REC_DATA frame
+    uint64_t t0_us;    ///< time of sample 0
 } simnode_fe_stream_t;
 
 typedef struct {
@@ -44,9 +44,9 @@ typedef struct {
     simnode_world_t *world;
     uint32_t rate_hz;
     double gain_uv;
-    uint64_t intervals_done;    ///< streams that ended complete
-    uint64_t info_period_us;    ///< FE_INFO repeat period (> 0)
-    uint64_t next_info_us;      ///< next FE_INFO; UINT64_MAX while not operational
+    uint64_t intervals_done;  ///< streams that ended complete
+    uint64_t info_period_us;  ///< FE_INFO repeat period (> 0)
+    uint64_t next_info_us;    ///< next FE_INFO; UINT64_MAX while not operational
     simnode_fe_stream_t st[SIMNODE_MAX_ELECTRODES];
 } simnode_fe_t;
 

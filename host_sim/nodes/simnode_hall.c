@@ -50,7 +50,7 @@ static void hall_send_readings(simnode_hall_t *h, uint64_t t_us)
         struct md_can_hall_reading_t r;
         md_frame_t f;
         r.electrode = (uint8_t)e;
-        r.seq = h->seq[e]++;   /* wraps at 256 by the type: loss stays detectable */
+        r.seq = h->seq[e]++; /* wraps at 256 by the type: loss stays detectable */
         r.raw_code = simnode_world_hall_read(h->world, e);
         r.sample_time_ms = (uint32_t)(t_us / 1000u);
         simnode_frame_init(&f, MD_CAN_HALL_READING_FRAME_ID, (uint8_t)MD_CAN_HALL_READING_LENGTH);
@@ -76,9 +76,7 @@ void simnode_hall_announce(simnode_hall_t *h, uint64_t t_us)
 void simnode_hall_on_nmt(simnode_hall_t *h, simnode_nmt_effect_t effect, uint64_t t_us)
 {
     switch (effect) {
-    case SIMNODE_NMT_ENTER_OP:
-        simnode_hall_announce(h, t_us);
-        break;
+    case SIMNODE_NMT_ENTER_OP: simnode_hall_announce(h, t_us); break;
     case SIMNODE_NMT_RESET:
         memset(h->seq, 0, sizeof h->seq);
         h->next_reading_us = UINT64_MAX;
@@ -93,8 +91,7 @@ void simnode_hall_on_nmt(simnode_hall_t *h, simnode_nmt_effect_t effect, uint64_
         break;
     case SIMNODE_NMT_CLEAR_ESTOP:
     case SIMNODE_NMT_NOT_ADDRESSED:
-    default:
-        break;
+    default: break;
     }
 }
 

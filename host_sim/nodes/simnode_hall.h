@@ -24,8 +24,8 @@
 typedef struct {
     simnode_t node;
     simnode_world_t *world;
-    uint64_t period_us;             ///< reading period (> 0)
-    uint64_t calib_period_us;       ///< calibration repeat period (> 0)
+    uint64_t period_us;        ///< reading period (> 0)
+    uint64_t calib_period_us;  ///< calibration repeat period (> 0)
     uint64_t next_reading_us;
     uint64_t next_calib_us;
     uint8_t seq[SIMNODE_MAX_ELECTRODES];

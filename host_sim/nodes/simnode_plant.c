@@ -15,7 +15,10 @@ void simnode_plant_cfg_default(simnode_plant_cfg_t *cfg)
     cfg->clock_period_ms = 10u;
 }
 
-static int plant_send_raw(simnode_plant_t *p, const md_frame_t *f) { return p->out.send(p->out.ctx, f); }
+static int plant_send_raw(simnode_plant_t *p, const md_frame_t *f)
+{
+    return p->out.send(p->out.ctx, f);
+}
 
 static void plant_send_clock(simnode_plant_t *p, uint64_t t_us)
 {
@@ -70,7 +73,10 @@ md_status_t simnode_plant_init(simnode_plant_t *p, const simnode_plant_cfg_t *cf
     return MD_OK;
 }
 
-static bool plant_busy(const simnode_plant_t *p) { return simnode_act_busy(&p->act) || simnode_fe_busy(&p->fe); }
+static bool plant_busy(const simnode_plant_t *p)
+{
+    return simnode_act_busy(&p->act) || simnode_fe_busy(&p->fe);
+}
 
 uint64_t simnode_plant_next_event_us(const simnode_plant_t *p)
 {
@@ -121,7 +127,7 @@ static void plant_run_lockstep(simnode_plant_t *p)
     while (plant_busy(p)) {
         const uint64_t t = simnode_plant_next_event_us(p);
         if (t == UINT64_MAX) {
-            break;   /* defensive: busy always has a pending event */
+            break; /* defensive: busy always has a pending event */
         }
         plant_run_at(p, (t > p->now_us) ? t : p->now_us);
     }
@@ -211,7 +217,7 @@ static void plant_on_step(simnode_plant_t *p, const md_frame_t *f)
     fe->stats.rx_frames++;
     p->stats.steps++;
     const uint64_t end_us = p->now_us + m.duration_us;
-    if (!p->batch_clock_sent) {   /* the answer starts with the clock even if nothing else goes out */
+    if (!p->batch_clock_sent) { /* the answer starts with the clock even if nothing else goes out */
         p->batch_clock_sent = true;
         p->stats.batches++;
         plant_send_clock(p, p->batch_start_us);
@@ -233,31 +239,19 @@ static void plant_dispatch(simnode_plant_t *p, const md_frame_t *f)
         return;
     }
     switch (f->id) {
-    case MD_CAN_ESTOP_FRAME_ID:
-        plant_on_estop(p, f);
-        break;
-    case MD_CAN_NMT_FRAME_ID:
-        plant_on_nmt(p, f);
-        break;
+    case MD_CAN_ESTOP_FRAME_ID: plant_on_estop(p, f); break;
+    case MD_CAN_NMT_FRAME_ID: plant_on_nmt(p, f); break;
     case MD_CAN_ACT_CMD_FRAME_ID: {
         const int moving = simnode_act_on_cmd(&p->act, f, p->now_us);
         if (moving >= 0) {
-            simnode_fe_abort(&p->fe, (uint32_t)moving);  /* a recording does not survive a motion */
+            simnode_fe_abort(&p->fe, (uint32_t)moving); /* a recording does not survive a motion */
         }
         break;
     }
-    case MD_CAN_REC_REQ_FRAME_ID:
-        (void)simnode_fe_on_req(&p->fe, f, p->now_us);
-        break;
-    case MD_CAN_SIM_CLOCK_FRAME_ID:
-        p->stats.rx_foreign_clock++;
-        break;
-    case MD_CAN_SIM_STEP_FRAME_ID:
-        plant_on_step(p, f);
-        break;
-    default:
-        p->stats.rx_ignored++;
-        break;
+    case MD_CAN_REC_REQ_FRAME_ID: (void)simnode_fe_on_req(&p->fe, f, p->now_us); break;
+    case MD_CAN_SIM_CLOCK_FRAME_ID: p->stats.rx_foreign_clock++; break;
+    case MD_CAN_SIM_STEP_FRAME_ID: plant_on_step(p, f); break;
+    default: p->stats.rx_ignored++; break;
     }
     p->stats.rx_malformed += p->act.node.stats.rx_malformed + p->fe.node.stats.rx_malformed - malformed_before;
 }
@@ -292,15 +286,11 @@ bool simnode_plant_advance(simnode_plant_t *p, uint64_t t_us)
 simnode_t *simnode_plant_node(simnode_plant_t *p, md_node_id_t id)
 {
     switch (id) {
-    case MD_NODE_ACT:
-        return &p->act.node;
-    case MD_NODE_HALL:
-        return &p->hall.node;
-    case MD_NODE_FE:
-        return &p->fe.node;
+    case MD_NODE_ACT: return &p->act.node;
+    case MD_NODE_HALL: return &p->hall.node;
+    case MD_NODE_FE: return &p->fe.node;
     case MD_NODE_CTRL:
     case MD_NODE_OPER:
-    default:
-        return NULL;
+    default: return NULL;
     }
 }

@@ -37,40 +37,40 @@
 #include "simnode_world.h"
 
 typedef struct {
-    bool lockstep;               ///< true: fast deterministic mode; false: realtime
-    bool autostart;              ///< nodes operational after boot without NMT start
-    double hall_rate_hz;         ///< HALL_READING rate; <= 0: the scenario's rate
-    uint32_t calib_period_ms;    ///< HALL_CALIB repeat period
-    uint32_t status_moving_ms;   ///< ACT_STATUS period while moving
-    uint32_t status_idle_ms;     ///< ACT_STATUS period otherwise
-    uint32_t clock_period_ms;    ///< realtime only: SIM_CLOCK period
+    bool lockstep;              ///< true: fast deterministic mode; false: realtime
+    bool autostart;             ///< nodes operational after boot without NMT start
+    double hall_rate_hz;        ///< HALL_READING rate; <= 0: the scenario's rate
+    uint32_t calib_period_ms;   ///< HALL_CALIB repeat period
+    uint32_t status_moving_ms;  ///< ACT_STATUS period while moving
+    uint32_t status_idle_ms;    ///< ACT_STATUS period otherwise
+    uint32_t clock_period_ms;   ///< realtime only: SIM_CLOCK period
 } simnode_plant_cfg_t;
 
 /// Plant-level counters (each node keeps its own too).
 typedef struct {
-    uint64_t rx_frames;          ///< every frame handed in
-    uint64_t rx_ignored;         ///< not addressed to the plant (other ids, extended ids, our own kinds)
-    uint64_t rx_malformed;       ///< failed validation (also counted by the node concerned)
-    uint64_t rx_foreign_clock;   ///< SIM_CLOCK from someone else: a second simulator on the bus?
-    uint64_t clock_frames;       ///< SIM_CLOCK frames sent
-    uint64_t batches;            ///< lockstep batches that sent frames
-    uint64_t steps;              ///< SIM_STEP requests served (lockstep settling)
+    uint64_t rx_frames;         ///< every frame handed in
+    uint64_t rx_ignored;        ///< not addressed to the plant (other ids, extended ids, our own kinds)
+    uint64_t rx_malformed;      ///< failed validation (also counted by the node concerned)
+    uint64_t rx_foreign_clock;  ///< SIM_CLOCK from someone else: a second simulator on the bus?
+    uint64_t clock_frames;      ///< SIM_CLOCK frames sent
+    uint64_t batches;           ///< lockstep batches that sent frames
+    uint64_t steps;             ///< SIM_STEP requests served (lockstep settling)
 } simnode_plant_stats_t;
 
 typedef struct {
     simnode_plant_cfg_t cfg;
-    simnode_world_t *world;      ///< borrowed; outlives the plant
-    simnode_sink_t out;          ///< the bus
-    uint64_t now_us;             ///< simulated time
-    bool batch_open;             ///< lockstep: a batch is being produced
-    bool batch_clock_sent;       ///< its opening SIM_CLOCK is out
+    simnode_world_t *world;  ///< borrowed; outlives the plant
+    simnode_sink_t out;      ///< the bus
+    uint64_t now_us;         ///< simulated time
+    bool batch_open;         ///< lockstep: a batch is being produced
+    bool batch_clock_sent;   ///< its opening SIM_CLOCK is out
     uint64_t batch_start_us;
-    uint64_t next_clock_us;      ///< realtime SIM_CLOCK schedule
+    uint64_t next_clock_us;  ///< realtime SIM_CLOCK schedule
     simnode_act_t act;
     simnode_hall_t hall;
     simnode_fe_t fe;
     simnode_plant_stats_t stats;
-    uint64_t silence_t_us;       ///< latest time the node silences were evaluated at
+    uint64_t silence_t_us;  ///< latest time the node silences were evaluated at
 } simnode_plant_t;
 
 /// Defaults: lockstep, autostart, scenario Hall rate, calibration every 10 s,

@@ -15,12 +15,12 @@ _Static_assert(SIMNODE_WORLD_CAL_MAX >= HALL_CAL_MAX_DEGREE + 1u, "calibration m
  * (model/electrode.h). An electrode that is not recording is kept at sample
  * floor(t_us * fs / 1e6); a recording one moves only by generating samples. */
 struct simnode_world {
-    sim_world_t sim;             /* ~0.4 MB per electrode: hence the heap */
+    sim_world_t sim; /* ~0.4 MB per electrode: hence the heap */
     uint64_t t_us;
-    uint32_t fs_hz;              /* integer sampling rate shared by every electrode */
+    uint32_t fs_hz; /* integer sampling rate shared by every electrode */
     bool recording[SIM_MAX_ELECTRODES];
-    FILE *truth;                 /* ground-truth sink (not owned) or NULL */
-    scenario_faults_t faults;    /* launcher/node-level faults of the scenario */
+    FILE *truth;              /* ground-truth sink (not owned) or NULL */
+    scenario_faults_t faults; /* launcher/node-level faults of the scenario */
 };
 
 static void world_err(char *err, size_t errlen, const char *msg)
@@ -59,11 +59,14 @@ simnode_world_t *simnode_world_create_scenario(const scenario_t *sc, uint64_t se
     return w;
 }
 
-const scenario_faults_t *simnode_world_faults(const simnode_world_t *w) { return &w->faults; }
+const scenario_faults_t *simnode_world_faults(const simnode_world_t *w)
+{
+    return &w->faults;
+}
 
 simnode_world_t *simnode_world_create(const char *scenario_path, uint64_t seed, char *err, size_t errlen)
 {
-    scenario_t *sc = malloc(sizeof *sc);   /* large: 8 electrode configurations */
+    scenario_t *sc = malloc(sizeof *sc); /* large: 8 electrode configurations */
     if (sc == NULL) {
         world_err(err, errlen, "out of memory");
         return NULL;
@@ -83,16 +86,25 @@ simnode_world_t *simnode_world_create(const char *scenario_path, uint64_t seed, 
     return w;
 }
 
-void simnode_world_destroy(simnode_world_t *w) { free(w); }
+void simnode_world_destroy(simnode_world_t *w)
+{
+    free(w);
+}
 
-uint32_t simnode_world_electrodes(const simnode_world_t *w) { return w->sim.n_electrodes; }
+uint32_t simnode_world_electrodes(const simnode_world_t *w)
+{
+    return w->sim.n_electrodes;
+}
 
-uint64_t simnode_world_time_us(const simnode_world_t *w) { return w->t_us; }
+uint64_t simnode_world_time_us(const simnode_world_t *w)
+{
+    return w->t_us;
+}
 
 /* Sample index of time t (floor), exact in integers. */
 static uint64_t world_sample_at(const simnode_world_t *w, uint64_t t_us)
 {
-    return t_us * w->fs_hz / 1000000u;   /* no overflow below ~10 years of simulated time */
+    return t_us * w->fs_hz / 1000000u; /* no overflow below ~10 years of simulated time */
 }
 
 void simnode_world_advance(simnode_world_t *w, uint64_t t_us)
@@ -127,16 +139,10 @@ simnode_act_report_t simnode_world_act_report(const simnode_world_t *w, uint32_t
     }
     const actuator_status_t st = actuator_status(&w->sim.el[e].act);
     switch (st.state) {
-    case ACTUATOR_MOVING:
-        r.state = (uint8_t)MD_ACT_MOVING;
-        break;
-    case ACTUATOR_STALLED:
-        r.state = (uint8_t)MD_ACT_STALLED;
-        break;
+    case ACTUATOR_MOVING: r.state = (uint8_t)MD_ACT_MOVING; break;
+    case ACTUATOR_STALLED: r.state = (uint8_t)MD_ACT_STALLED; break;
     case ACTUATOR_IDLE:
-    default:
-        r.state = (uint8_t)MD_ACT_IDLE;
-        break;
+    default: r.state = (uint8_t)MD_ACT_IDLE; break;
     }
     r.steps_requested = st.steps_requested;
     r.steps_done = st.steps_done;
@@ -190,7 +196,7 @@ void simnode_world_hall_cal(const simnode_world_t *w, uint32_t e, simnode_hall_c
     }
     const hall_calibration_t *c = &w->sim.el[e].hall.cal;
     const uint32_t bits = w->sim.el[e].hall.p.adc_bits;
-    const double scale = (bits > 16u) ? ldexp(1.0, (int)bits - 16) : 1.0;   /* as in hall_read */
+    const double scale = (bits > 16u) ? ldexp(1.0, (int)bits - 16) : 1.0; /* as in hall_read */
     cal->count = c->degree + 1u;
     for (uint32_t k = 0; k < cal->count && k < SIMNODE_WORLD_CAL_MAX; k++) {
         cal->coef[k] = c->coef[k];
@@ -199,11 +205,20 @@ void simnode_world_hall_cal(const simnode_world_t *w, uint32_t e, simnode_hall_c
     cal->code_half = c->code_half / scale;
 }
 
-double simnode_world_hall_rate_hz(const simnode_world_t *w) { return w->sim.el[0].hall.p.report_rate_hz; }
+double simnode_world_hall_rate_hz(const simnode_world_t *w)
+{
+    return w->sim.el[0].hall.p.report_rate_hz;
+}
 
-uint32_t simnode_world_fe_rate_hz(const simnode_world_t *w) { return w->fs_hz; }
+uint32_t simnode_world_fe_rate_hz(const simnode_world_t *w)
+{
+    return w->fs_hz;
+}
 
-double simnode_world_fe_gain_uv(const simnode_world_t *w) { return w->sim.el[0].cfg.signal.adc_gain_uv; }
+double simnode_world_fe_gain_uv(const simnode_world_t *w)
+{
+    return w->sim.el[0].cfg.signal.adc_gain_uv;
+}
 
 md_status_t simnode_world_record_start(simnode_world_t *w, uint32_t e, uint32_t interval_id, uint32_t n_samples)
 {
@@ -232,11 +247,11 @@ md_status_t simnode_world_record_start(simnode_world_t *w, uint32_t e, uint32_t 
 
 md_status_t simnode_world_record_next(simnode_world_t *w, uint32_t e, uint32_t n, int16_t *out)
 {
-    sim_gt_spike_t gt[64];   /* a few samples' spikes; the truth sink gets them all */
+    sim_gt_spike_t gt[64]; /* a few samples' spikes; the truth sink gets them all */
     if (e >= w->sim.n_electrodes || !w->recording[e]) {
         return MD_E_STATE;
     }
-    for (uint32_t done = 0; done < n;) {   /* bounded: n / 32 chunks */
+    for (uint32_t done = 0; done < n;) { /* bounded: n / 32 chunks */
         const uint32_t m = (n - done < 32u) ? n - done : 32u;
         (void)sim_electrode_generate(&w->sim.el[e], out + done, m, gt, sizeof gt / sizeof gt[0]);
         done += m;

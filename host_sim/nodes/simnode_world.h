@@ -28,18 +28,18 @@ typedef struct simnode_world simnode_world_t;
 
 /// Motion state of one actuator as the driver node reports it.
 typedef struct {
-    uint8_t state;            ///< md_act_state_t: idle, moving or stalled
-    uint32_t steps_requested; ///< of the last command
-    uint32_t steps_done;      ///< of the last command
-    bool at_upper_stop;       ///< carrier on the top (shallow) end stop
-    bool at_lower_stop;       ///< carrier on the bottom (deep) end stop
+    uint8_t state;             ///< md_act_state_t: idle, moving or stalled
+    uint32_t steps_requested;  ///< of the last command
+    uint32_t steps_done;       ///< of the last command
+    bool at_upper_stop;        ///< carrier on the top (shallow) end stop
+    bool at_lower_stop;        ///< carrier on the bottom (deep) end stop
 } simnode_act_report_t;
 
 /// Hall calibration as sent in HALL_CALIB: depth_um = sum_k coef[k] * x^k with
 /// x = (code - code_mid) / code_half (normalised so float32 coefficients keep
 /// sub-micron accuracy).
 typedef struct {
-    uint32_t count;                       ///< coefficients in coef (degree + 1)
+    uint32_t count;  ///< coefficients in coef (degree + 1)
     double coef[SIMNODE_WORLD_CAL_MAX];
     double code_mid, code_half;
 } simnode_hall_cal_t;

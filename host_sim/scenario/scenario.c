@@ -21,49 +21,63 @@ typedef struct {
     bool required;
 } field_t;
 
+/* clang-format would split these initialiser macros over lines. */
+/* clang-format off */
 #define FD(st, k, lo, hi) {#k, FT_DOUBLE, offsetof(st, k), (lo), (hi), false}
 #define FU(st, k, lo, hi) {#k, FT_U32, offsetof(st, k), (lo), (hi), false}
+/* clang-format on */
 #define NFIELDS(t) (sizeof(t) / sizeof((t)[0]))
 
 static const field_t ACTUATOR_FIELDS[] = {
-    FD(actuator_params_t, step_nm, 1.0, 10000.0),     FD(actuator_params_t, step_cv, 0.0, 1.0),
-    FD(actuator_params_t, retract_ratio, 0.1, 2.0),   FD(actuator_params_t, miss_prob, 0.0, 1.0),
-    FD(actuator_params_t, slip_prob, 0.0, 1.0),       FD(actuator_params_t, slip_nm, 0.0, 10000.0),
+    FD(actuator_params_t, step_nm, 1.0, 10000.0),      FD(actuator_params_t, step_cv, 0.0, 1.0),
+    FD(actuator_params_t, retract_ratio, 0.1, 2.0),    FD(actuator_params_t, miss_prob, 0.0, 1.0),
+    FD(actuator_params_t, slip_prob, 0.0, 1.0),        FD(actuator_params_t, slip_nm, 0.0, 10000.0),
     FD(actuator_params_t, max_rate_hz, 1.0, 100000.0), FD(actuator_params_t, travel_um, 100.0, 50000.0),
 };
 
 static const field_t SENSOR_FIELDS[] = {
-    FD(hall_params_t, center_um, -1e5, 1e5),          FD(hall_params_t, length_um, 10.0, 1e6),
-    FD(hall_params_t, offset_codes, 0.0, 16777216.0), FD(hall_params_t, amplitude_codes, 1.0, 16777216.0),
-    FU(hall_params_t, adc_bits, 8.0, 24.0),           FD(hall_params_t, noise_codes, 0.0, 1e4),
-    FD(hall_params_t, drift_codes_per_hour, -1e4, 1e4), FD(hall_params_t, drift_amp_codes, 0.0, 1e4),
-    FD(hall_params_t, drift_period_s, 1.0, 1e7),      FD(hall_params_t, report_rate_hz, 0.1, 10000.0),
+    FD(hall_params_t, center_um, -1e5, 1e5),
+    FD(hall_params_t, length_um, 10.0, 1e6),
+    FD(hall_params_t, offset_codes, 0.0, 16777216.0),
+    FD(hall_params_t, amplitude_codes, 1.0, 16777216.0),
+    FU(hall_params_t, adc_bits, 8.0, 24.0),
+    FD(hall_params_t, noise_codes, 0.0, 1e4),
+    FD(hall_params_t, drift_codes_per_hour, -1e4, 1e4),
+    FD(hall_params_t, drift_amp_codes, 0.0, 1e4),
+    FD(hall_params_t, drift_period_s, 1.0, 1e7),
+    FD(hall_params_t, report_rate_hz, 0.1, 10000.0),
     FU(hall_params_t, cal_degree, 1.0, (double)HALL_CAL_MAX_DEGREE),
 };
 
 static const field_t TISSUE_FIELDS[] = {
-    FD(tissue_params_t, drift_um_per_min, -100.0, 100.0), FD(tissue_params_t, drift_start_s, 0.0, 1e7),
+    FD(tissue_params_t, drift_um_per_min, -100.0, 100.0),  FD(tissue_params_t, drift_start_s, 0.0, 1e7),
     FD(tissue_params_t, insert_relax_um, -1000.0, 1000.0), FD(tissue_params_t, insert_tau_s, 1.0, 1e7),
-    FD(tissue_params_t, drag_advance, 0.0, 1.0),          FD(tissue_params_t, drag_retract, 0.0, 1.0),
-    FD(tissue_params_t, permanent_fraction, 0.0, 1.0),    FD(tissue_params_t, move_tau_s, 0.1, 1e6),
-    FD(tissue_params_t, max_relax_um, 0.0, 1000.0),       FD(tissue_params_t, breathing_um, 0.0, 50.0),
-    FD(tissue_params_t, breathing_hz, 0.01, 10.0),        FD(tissue_params_t, heartbeat_um, 0.0, 20.0),
+    FD(tissue_params_t, drag_advance, 0.0, 1.0),           FD(tissue_params_t, drag_retract, 0.0, 1.0),
+    FD(tissue_params_t, permanent_fraction, 0.0, 1.0),     FD(tissue_params_t, move_tau_s, 0.1, 1e6),
+    FD(tissue_params_t, max_relax_um, 0.0, 1000.0),        FD(tissue_params_t, breathing_um, 0.0, 50.0),
+    FD(tissue_params_t, breathing_hz, 0.01, 10.0),         FD(tissue_params_t, heartbeat_um, 0.0, 20.0),
     FD(tissue_params_t, heartbeat_hz, 0.1, 10.0),
 };
 
 static const field_t SIGNAL_FIELDS[] = {
-    FD(signal_params_t, sample_rate_hz, 20000.0, 50000.0), FD(signal_params_t, adc_gain_uv, 0.01, 100.0),
-    FD(signal_params_t, noise_uv, 0.0, 1000.0),            FD(signal_params_t, band_low_hz, 1.0, 5000.0),
-    FD(signal_params_t, band_high_hz, 100.0, 20000.0),     FD(signal_params_t, mua_rate_hz, 0.0, 1e5),
-    FD(signal_params_t, mua_amp_uv, 0.0, 1000.0),          FD(signal_params_t, motion_artifact_uv, 0.0, 1e5),
-    FD(signal_params_t, motion_artifact_tau_s, 1e-4, 10.0), FD(signal_params_t, motion_artifact_hz, 1.0, 20000.0),
-    FD(signal_params_t, large_artifact_rate_hz, 0.0, 100.0), FD(signal_params_t, large_artifact_uv, 0.0, 1e5),
+    FD(signal_params_t, sample_rate_hz, 20000.0, 50000.0),
+    FD(signal_params_t, adc_gain_uv, 0.01, 100.0),
+    FD(signal_params_t, noise_uv, 0.0, 1000.0),
+    FD(signal_params_t, band_low_hz, 1.0, 5000.0),
+    FD(signal_params_t, band_high_hz, 100.0, 20000.0),
+    FD(signal_params_t, mua_rate_hz, 0.0, 1e5),
+    FD(signal_params_t, mua_amp_uv, 0.0, 1000.0),
+    FD(signal_params_t, motion_artifact_uv, 0.0, 1e5),
+    FD(signal_params_t, motion_artifact_tau_s, 1e-4, 10.0),
+    FD(signal_params_t, motion_artifact_hz, 1.0, 20000.0),
+    FD(signal_params_t, large_artifact_rate_hz, 0.0, 100.0),
+    FD(signal_params_t, large_artifact_uv, 0.0, 1e5),
 };
 
 static const field_t NEURON_MODEL_FIELDS[] = {
-    FD(neuron_model_params_t, falloff_um, 1.0, 1000.0),   FD(neuron_model_params_t, falloff_exp, 1.0, 4.0),
-    FD(neuron_model_params_t, range_um, 10.0, 1000.0),    FD(neuron_model_params_t, damage_um, 0.0, 100.0),
-    FD(neuron_model_params_t, shape_mix, 0.0, 1.0),       FD(neuron_model_params_t, window_pre_ms, 0.1, 1.5),
+    FD(neuron_model_params_t, falloff_um, 1.0, 1000.0),  FD(neuron_model_params_t, falloff_exp, 1.0, 4.0),
+    FD(neuron_model_params_t, range_um, 10.0, 1000.0),   FD(neuron_model_params_t, damage_um, 0.0, 100.0),
+    FD(neuron_model_params_t, shape_mix, 0.0, 1.0),      FD(neuron_model_params_t, window_pre_ms, 0.1, 1.5),
     FD(neuron_model_params_t, window_post_ms, 0.2, 2.5),
 };
 
@@ -103,8 +117,10 @@ static const field_t RANDOM_FIELDS[] = {
 };
 
 static const field_t EXPORT_FIELDS[] = {
-    FU(scenario_export_t, intervals, 1.0, 100000.0), FD(scenario_export_t, interval_s, 0.01, 3600.0),
-    FD(scenario_export_t, step_um, -5600.0, 5600.0), FD(scenario_export_t, settle_s, 0.0, 3600.0),
+    FU(scenario_export_t, intervals, 1.0, 100000.0),
+    FD(scenario_export_t, interval_s, 0.01, 3600.0),
+    FD(scenario_export_t, step_um, -5600.0, 5600.0),
+    FD(scenario_export_t, settle_s, 0.0, 3600.0),
 };
 
 static const field_t TOP_SCALARS[] = {
@@ -157,15 +173,24 @@ __attribute__((format(printf, 3, 4))) static void perr(ctx_t *c, size_t line, co
         c->used += (size_t)n;
     }
     if (c->used >= c->errlen) {
-        c->used = c->errlen - 1u;   /* truncated; snprintf kept it terminated */
+        c->used = c->errlen - 1u; /* truncated; snprintf kept it terminated */
     }
 }
 
-static size_t line_of(const yaml_node_t *n) { return n->start_mark.line + 1u; }
+static size_t line_of(const yaml_node_t *n)
+{
+    return n->start_mark.line + 1u;
+}
 
-static const char *sval(const yaml_node_t *n) { return (const char *)n->data.scalar.value; }
+static const char *sval(const yaml_node_t *n)
+{
+    return (const char *)n->data.scalar.value;
+}
 
-static yaml_node_t *node_at(ctx_t *c, int i) { return yaml_document_get_node(c->doc, i); }
+static yaml_node_t *node_at(ctx_t *c, int i)
+{
+    return yaml_document_get_node(c->doc, i);
+}
 
 static bool is_quoted(const yaml_node_t *n)
 {
@@ -260,8 +285,7 @@ static void set_field(ctx_t *c, const field_t *f, const yaml_node_t *v, void *ba
             p[v->data.scalar.length] = '\0';
         }
         break;
-    default:
-        break;
+    default: break;
     }
 }
 
@@ -276,8 +300,8 @@ static const field_t *find_field(const field_t *fs, size_t n, const char *key)
 }
 
 /* A mapping whose keys are all fields of the table. */
-static void parse_section(ctx_t *c, const yaml_node_t *m, const field_t *fs, size_t n, void *base,
-                          const char *section, bool check_required)
+static void parse_section(ctx_t *c, const yaml_node_t *m, const field_t *fs, size_t n, void *base, const char *section,
+                          bool check_required)
 {
     if (m->type != YAML_MAPPING_NODE) {
         perr(c, line_of(m), "%s must be a mapping", section);
@@ -315,14 +339,26 @@ static void parse_section(ctx_t *c, const yaml_node_t *m, const field_t *fs, siz
 /* ---- faults ----------------------------------------------------------------- */
 
 typedef enum {
-    FK_BUS_LOSS, FK_BUS_CORRUPT, FK_BUS_DUP, FK_BUS_DELAY, FK_BUS_REORDER,
-    FK_NODE_SILENT, FK_HALL_GLITCH, FK_HALL_STUCK, FK_ACT_STALL, FK_ACT_SLIP,
-    FK_ADC_SATURATION, FK_ARTIFACT_STORM, FK_CTRL_RESTART, FK_COUNT
+    FK_BUS_LOSS,
+    FK_BUS_CORRUPT,
+    FK_BUS_DUP,
+    FK_BUS_DELAY,
+    FK_BUS_REORDER,
+    FK_NODE_SILENT,
+    FK_HALL_GLITCH,
+    FK_HALL_STUCK,
+    FK_ACT_STALL,
+    FK_ACT_SLIP,
+    FK_ADC_SATURATION,
+    FK_ARTIFACT_STORM,
+    FK_CTRL_RESTART,
+    FK_COUNT
 } fault_kind_t;
 
 static const char *const FAULT_KIND_NAMES[FK_COUNT] = {
-    "bus_loss", "bus_corrupt", "bus_dup", "bus_delay", "bus_reorder", "node_silent", "hall_glitch",
-    "hall_stuck", "actuator_stall", "actuator_slip", "adc_saturation", "artifact_storm", "controller_restart"};
+    "bus_loss",       "bus_corrupt",    "bus_dup",           "bus_delay",      "bus_reorder",
+    "node_silent",    "hall_glitch",    "hall_stuck",        "actuator_stall", "actuator_slip",
+    "adc_saturation", "artifact_storm", "controller_restart"};
 
 #define FAULT_FOREVER_S 1e300
 
@@ -333,18 +369,33 @@ typedef struct {
 
 /* Bits of FAULT_FIELDS, to check which keys a kind accepts. */
 enum {
-    FB_FROM = 1u << 0, FB_TO = 1u << 1, FB_AT = 1u << 2, FB_PROB = 1u << 3, FB_CODES = 1u << 4,
-    FB_SLIP = 1u << 5, FB_RATE = 1u << 6, FB_AMP = 1u << 7, FB_ELECTRODE = 1u << 8, FB_FRAMES = 1u << 9,
-    FB_CANID = 1u << 10, FB_NODE = 1u << 11, FB_DIR = 1u << 12
+    FB_FROM = 1u << 0,
+    FB_TO = 1u << 1,
+    FB_AT = 1u << 2,
+    FB_PROB = 1u << 3,
+    FB_CODES = 1u << 4,
+    FB_SLIP = 1u << 5,
+    FB_RATE = 1u << 6,
+    FB_AMP = 1u << 7,
+    FB_ELECTRODE = 1u << 8,
+    FB_FRAMES = 1u << 9,
+    FB_CANID = 1u << 10,
+    FB_NODE = 1u << 11,
+    FB_DIR = 1u << 12
 };
 
 static const field_t FAULT_FIELDS[] = {
-    FD(fault_entry_t, from_s, 0.0, 1e7),    FD(fault_entry_t, to_s, 0.0, 1e7),
-    FD(fault_entry_t, at_s, 0.0, 1e7),      FD(fault_entry_t, prob, 0.0, 1.0),
-    FD(fault_entry_t, codes, 1.0, 16777216.0), FD(fault_entry_t, slip_um, 0.001, 1000.0),
-    FD(fault_entry_t, rate_hz, 0.01, 1000.0), FD(fault_entry_t, amp_uv, 1.0, 1e5),
+    FD(fault_entry_t, from_s, 0.0, 1e7),
+    FD(fault_entry_t, to_s, 0.0, 1e7),
+    FD(fault_entry_t, at_s, 0.0, 1e7),
+    FD(fault_entry_t, prob, 0.0, 1.0),
+    FD(fault_entry_t, codes, 1.0, 16777216.0),
+    FD(fault_entry_t, slip_um, 0.001, 1000.0),
+    FD(fault_entry_t, rate_hz, 0.01, 1000.0),
+    FD(fault_entry_t, amp_uv, 1.0, 1e5),
     FU(fault_entry_t, electrode, 0.0, (double)SIM_MAX_ELECTRODES - 1.0),
-    FU(fault_entry_t, frames, 1.0, 32.0),   FU(fault_entry_t, can_id, 0.0, 2047.0),
+    FU(fault_entry_t, frames, 1.0, 32.0),
+    FU(fault_entry_t, can_id, 0.0, 2047.0),
 };
 
 /* Keys each kind accepts (kind itself always), and the ones it requires. */
@@ -352,16 +403,21 @@ static uint32_t fault_allowed(fault_kind_t k)
 {
     const uint32_t win = FB_FROM | FB_TO;
     switch (k) {
-    case FK_BUS_LOSS: case FK_BUS_CORRUPT: case FK_BUS_DUP: case FK_BUS_REORDER:
-        return win | FB_PROB | FB_DIR | FB_CANID;
+    case FK_BUS_LOSS:
+    case FK_BUS_CORRUPT:
+    case FK_BUS_DUP:
+    case FK_BUS_REORDER: return win | FB_PROB | FB_DIR | FB_CANID;
     case FK_BUS_DELAY: return win | FB_PROB | FB_DIR | FB_CANID | FB_FRAMES;
     case FK_NODE_SILENT: return win | FB_NODE;
     case FK_HALL_GLITCH: return win | FB_ELECTRODE | FB_PROB | FB_CODES;
     case FK_ACT_SLIP: return win | FB_ELECTRODE | FB_PROB | FB_SLIP;
     case FK_ARTIFACT_STORM: return win | FB_ELECTRODE | FB_RATE | FB_AMP;
-    case FK_HALL_STUCK: case FK_ACT_STALL: case FK_ADC_SATURATION: return win | FB_ELECTRODE;
+    case FK_HALL_STUCK:
+    case FK_ACT_STALL:
+    case FK_ADC_SATURATION: return win | FB_ELECTRODE;
     case FK_CTRL_RESTART: return FB_AT;
-    case FK_COUNT: default: return 0u;
+    case FK_COUNT:
+    default: return 0u;
     }
 }
 
@@ -373,8 +429,8 @@ static uint32_t fault_required(fault_kind_t k)
     return (k == FK_NODE_SILENT) ? FB_NODE : (k == FK_CTRL_RESTART) ? FB_AT : 0u;
 }
 
-static const char *const FAULT_KEY_NAMES[] = {"from_s", "to_s", "at_s", "prob", "codes", "slip_um", "rate_hz",
-                                              "amp_uv", "electrode", "frames", "can_id", "node", "direction"};
+static const char *const FAULT_KEY_NAMES[] = {"from_s", "to_s",      "at_s",   "prob",   "codes", "slip_um",  "rate_hz",
+                                              "amp_uv", "electrode", "frames", "can_id", "node",  "direction"};
 
 typedef struct {
     fault_kind_t kind;
@@ -396,7 +452,7 @@ static bool fault_string_key(ctx_t *c, const char *key, const yaml_node_t *v, fa
     for (uint32_t i = 0u; i < 3u; ++i) {
         if (strcmp(sv, is_node ? nodes[i] : dirs[i]) == 0) {
             if (is_node) {
-                it->node = i + 2u;   /* md_node_id_t: 2 act, 3 hall, 4 fe */
+                it->node = i + 2u; /* md_node_id_t: 2 act, 3 hall, 4 fe */
             } else {
                 it->dirs = i + 1u;
             }
@@ -467,19 +523,37 @@ static void fault_model_set(ctx_t *c, const fault_item_t *it, sim_model_faults_t
 {
     sim_window_t *w = NULL;
     switch (it->kind) {
-    case FK_HALL_GLITCH: w = &mf->hall_glitch; mf->hall_glitch_codes = it->e.codes;
-        if (it->seen & FB_PROB) { mf->hall_glitch_prob = it->e.prob; }
+    case FK_HALL_GLITCH:
+        w = &mf->hall_glitch;
+        mf->hall_glitch_codes = it->e.codes;
+        if (it->seen & FB_PROB) {
+            mf->hall_glitch_prob = it->e.prob;
+        }
         break;
     case FK_HALL_STUCK: w = &mf->hall_stuck; break;
     case FK_ACT_STALL: w = &mf->act_stall; break;
-    case FK_ACT_SLIP: w = &mf->act_slip; mf->act_slip_um = it->e.slip_um;
-        if (it->seen & FB_PROB) { mf->act_slip_prob = it->e.prob; }
+    case FK_ACT_SLIP:
+        w = &mf->act_slip;
+        mf->act_slip_um = it->e.slip_um;
+        if (it->seen & FB_PROB) {
+            mf->act_slip_prob = it->e.prob;
+        }
         break;
     case FK_ADC_SATURATION: w = &mf->adc_saturation; break;
-    case FK_ARTIFACT_STORM: w = &mf->artifact_storm; mf->storm_rate_hz = it->e.rate_hz; mf->storm_amp_uv = it->e.amp_uv;
+    case FK_ARTIFACT_STORM:
+        w = &mf->artifact_storm;
+        mf->storm_rate_hz = it->e.rate_hz;
+        mf->storm_amp_uv = it->e.amp_uv;
         break;
-    case FK_BUS_LOSS: case FK_BUS_CORRUPT: case FK_BUS_DUP: case FK_BUS_DELAY: case FK_BUS_REORDER:
-    case FK_NODE_SILENT: case FK_CTRL_RESTART: case FK_COUNT: default: return;
+    case FK_BUS_LOSS:
+    case FK_BUS_CORRUPT:
+    case FK_BUS_DUP:
+    case FK_BUS_DELAY:
+    case FK_BUS_REORDER:
+    case FK_NODE_SILENT:
+    case FK_CTRL_RESTART:
+    case FK_COUNT:
+    default: return;
     }
     if (w->to_s > w->from_s) {
         perr(c, it->line, "a second %s fault on one electrode", FAULT_KIND_NAMES[it->kind]);
@@ -497,8 +571,9 @@ static void fault_store(ctx_t *c, const fault_item_t *it, scenario_t *sc)
             perr(c, it->line, "more than %u bus faults", (unsigned)SCENARIO_BUS_FAULTS_MAX);
             return;
         }
-        f->bus[f->n_bus++] = (scenario_bus_fault_t){(uint32_t)it->kind, it->e.prob, it->e.from_s, it->e.to_s,
-                                                    it->dirs, it->e.frames, it->e.can_id, (it->seen & FB_CANID) ? 1u : 0u};
+        f->bus[f->n_bus++] = (scenario_bus_fault_t){
+            (uint32_t)it->kind, it->e.prob,   it->e.from_s, it->e.to_s,
+            it->dirs,           it->e.frames, it->e.can_id, (it->seen & FB_CANID) ? 1u : 0u};
     } else if (it->kind == FK_NODE_SILENT) {
         if (f->n_silent >= SCENARIO_SILENT_MAX) {
             perr(c, it->line, "more than %u node_silent faults", (unsigned)SCENARIO_SILENT_MAX);
@@ -616,8 +691,8 @@ static void parse_electrode(ctx_t *c, const yaml_node_t *m, const defaults_t *d,
         const yaml_node_t *k = node_at(c, pr->key), *v = node_at(c, pr->value);
         const char *key = (k->type == YAML_SCALAR_NODE) ? sval(k) : "";
         if (strcmp(key, "start_um") == 0) {
-            static const field_t f = {"start_um", FT_DOUBLE, offsetof(sim_electrode_config_t, start_um), 0.0, 1e5,
-                                      false};
+            static const field_t f = {"start_um", FT_DOUBLE, offsetof(sim_electrode_config_t, start_um),
+                                      0.0,        1e5,       false};
             set_field(c, &f, v, e, "electrode");
         } else if (strcmp(key, "actuator") == 0) {
             parse_section(c, v, ACTUATOR_FIELDS, NFIELDS(ACTUATOR_FIELDS), &e->actuator, "actuator", false);
@@ -671,8 +746,7 @@ static bool parse_top_key(ctx_t *c, const char *key, const yaml_node_t *v, defau
     } else if (strcmp(key, "tissue") == 0) {
         parse_section(c, v, TISSUE_FIELDS, NFIELDS(TISSUE_FIELDS), &b->tissue, "tissue", false);
     } else if (strcmp(key, "neuron_model") == 0) {
-        parse_section(c, v, NEURON_MODEL_FIELDS, NFIELDS(NEURON_MODEL_FIELDS), &b->neuron_model, "neuron_model",
-                      false);
+        parse_section(c, v, NEURON_MODEL_FIELDS, NFIELDS(NEURON_MODEL_FIELDS), &b->neuron_model, "neuron_model", false);
         d->lines.neuron_model = line_of(v);
     } else if (strcmp(key, "neuron_defaults") == 0) {
         parse_section(c, v, NEURON_FIELDS, NFIELDS(NEURON_FIELDS), &d->neuron, "neuron_defaults", false);
@@ -733,7 +807,7 @@ static void parse_root(ctx_t *c, const yaml_node_t *root, scenario_t *sc)
         if (strcmp(sval(k), "electrodes") == 0) {
             electrodes = v;
         } else if (strcmp(sval(k), "faults") == 0) {
-            faults = v;   /* after the electrodes: model faults go into them */
+            faults = v; /* after the electrodes: model faults go into them */
         } else if (!parse_top_key(c, sval(k), v, &d, sc)) {
             perr(c, line_of(k), "unknown key '%s'", sval(k));
         }
@@ -808,7 +882,7 @@ int scenario_load(scenario_t *sc, const char *path, char *err, size_t errlen)
     }
     char *buf = NULL;
     size_t len = 0u, cap = 0u;
-    for (;;) {   /* bounded by the file's size */
+    for (;;) { /* bounded by the file's size */
         if (len + 4096u > cap) {
             cap = (cap == 0u) ? 65536u : cap * 2u;
             char *nb = realloc(buf, cap);

@@ -64,18 +64,18 @@ typedef struct {
 
 /// One bus fault (a md_bus_fault wrapper around the simulator's endpoint).
 typedef struct {
-    uint32_t kind;           ///< md_bus_fault_kind_t: 0 loss, 1 corrupt, 2 dup, 3 delay, 4 reorder
-    double prob;             ///< per frame, required
-    double from_s, to_s;     ///< simulated-time window
-    uint32_t directions;     ///< 1 frames the simulator sends, 2 frames it receives, 3 both (default)
-    uint32_t frames;         ///< delay in frames (bus_delay; default 4)
-    uint32_t can_id;         ///< only this CAN id (has_id), else every frame
+    uint32_t kind;        ///< md_bus_fault_kind_t: 0 loss, 1 corrupt, 2 dup, 3 delay, 4 reorder
+    double prob;          ///< per frame, required
+    double from_s, to_s;  ///< simulated-time window
+    uint32_t directions;  ///< 1 frames the simulator sends, 2 frames it receives, 3 both (default)
+    uint32_t frames;      ///< delay in frames (bus_delay; default 4)
+    uint32_t can_id;      ///< only this CAN id (has_id), else every frame
     uint32_t has_id;
 } scenario_bus_fault_t;
 
 /// One silence of a simulated node (it sends nothing, heartbeat included).
 typedef struct {
-    uint32_t node;           ///< md_node_id_t: 2 act, 3 hall, 4 fe
+    uint32_t node;  ///< md_node_id_t: 2 act, 3 hall, 4 fe
     double from_s, to_s;
 } scenario_silence_t;
 
@@ -85,13 +85,13 @@ typedef struct {
     uint32_t n_silent;
     scenario_silence_t silent[SCENARIO_SILENT_MAX];
     uint32_t n_restarts;
-    double restart_at_s[SCENARIO_RESTARTS_MAX];   ///< controller restarts, ascending
+    double restart_at_s[SCENARIO_RESTARTS_MAX];  ///< controller restarts, ascending
 } scenario_faults_t;
 
 typedef struct {
     char name[SCENARIO_NAME_MAX];
-    uint64_t seed;            ///< default 1
-    double duration_s;        ///< default 600 s
+    uint64_t seed;      ///< default 1
+    double duration_s;  ///< default 600 s
     uint32_t n_electrodes;
     sim_electrode_config_t electrodes[SIM_MAX_ELECTRODES];
     scenario_export_t export_cfg;

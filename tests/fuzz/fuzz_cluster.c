@@ -205,8 +205,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     cin.data.d = d;
     memset(&g_out, 0, sizeof g_out);
     const md_status_t st = cluster_fit_models(&cfg, &cin, &g_ws, &g_out);
-    FUZZ_CHECK(st == MD_OK || st == MD_E_ARG || st == MD_E_DEGENERATE || st == MD_E_NUMERIC ||
-               st == MD_E_NOCONVERGE);
+    FUZZ_CHECK(st == MD_OK || st == MD_E_ARG || st == MD_E_DEGENERATE || st == MD_E_NUMERIC || st == MD_E_NOCONVERGE);
     const bool cfg_ok = cfg.g_max >= 1u && cfg.g_max <= EM_G_MAX;
     if (!cfg_ok || d != dd) {
         FUZZ_CHECK(st == MD_E_ARG);

@@ -67,7 +67,7 @@ static const char *field(const char *s, char stop, long long lo, unsigned long l
 }
 
 typedef struct {
-    int status;              /* 0 ok, 1 bad line, 2 not ascending */
+    int status; /* 0 ok, 1 bad line, 2 not ascending */
     size_t n;
     uint64_t sample[4096];
     int32_t neuron[4096];

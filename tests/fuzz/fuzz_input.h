@@ -24,12 +24,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 /// An invariant the code under test promises: a violation aborts the run so
 /// that libFuzzer saves the input as a crash (and a plain run of the binary on
 /// that file reproduces it).
-#define FUZZ_CHECK(cond)                                                                 \
-    do {                                                                                 \
-        if (!(cond)) {                                                                   \
+#define FUZZ_CHECK(cond)                                                                         \
+    do {                                                                                         \
+        if (!(cond)) {                                                                           \
             (void)fprintf(stderr, "%s:%d: invariant violated: %s\n", __FILE__, __LINE__, #cond); \
-            __builtin_trap();                                                            \
-        }                                                                                \
+            __builtin_trap();                                                                    \
+        }                                                                                        \
     } while (0)
 
 typedef struct {
@@ -97,9 +97,9 @@ static inline double fz_raw_double(fz_t *f)
 /// One of the values numeric code most often gets wrong.
 static inline double fz_special(uint8_t k)
 {
-    static const double SPECIAL[16] = {0.0, -0.0, 1.0, -1.0, DBL_MIN, -DBL_MIN, DBL_TRUE_MIN, -DBL_TRUE_MIN,
-                                       DBL_MAX, -DBL_MAX, 1e154, -1e154, 1e-154, (double)INFINITY,
-                                       -(double)INFINITY, (double)NAN};
+    static const double SPECIAL[16] = {
+        0.0,     -0.0,     1.0,   -1.0,   DBL_MIN, -DBL_MIN,         DBL_TRUE_MIN,      -DBL_TRUE_MIN,
+        DBL_MAX, -DBL_MAX, 1e154, -1e154, 1e-154,  (double)INFINITY, -(double)INFINITY, (double)NAN};
     return SPECIAL[k & 15u];
 }
 

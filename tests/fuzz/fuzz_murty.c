@@ -19,7 +19,7 @@
 #define FZ_BRUTE_MAX 6000u /* assignments enumerated at most per input */
 
 typedef struct {
-    double best[MURTY_MAX_L]; ///< cheapest costs found, ascending
+    double best[MURTY_MAX_L];  ///< cheapest costs found, ascending
     size_t kept, feasible;
 } brute_t;
 
@@ -100,8 +100,7 @@ static bool same_assignment(const lap_solution_t *a, const lap_solution_t *b, si
     return memcmp(a->col_of_row, b->col_of_row, rows * sizeof a->col_of_row[0]) == 0;
 }
 
-static void check_solutions(const lap_solution_t *out, size_t n_out, size_t rows, size_t cols, size_t L,
-                            double scale)
+static void check_solutions(const lap_solution_t *out, size_t n_out, size_t rows, size_t cols, size_t L, double scale)
 {
     FUZZ_CHECK(n_out <= L);
     for (size_t k = 0u; k < n_out; ++k) {
@@ -133,9 +132,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     fz_t in;
     fz_init(&in, data, size);
-    const size_t rows = fz_u8(&in) % (LAP_MAX_ROWS + 2u);   /* 0 and MAX+1 invalid */
-    const size_t cols = fz_u8(&in) % (LAP_MAX_COLS + 2u);   /* 0 and MAX+1 invalid */
-    const size_t L = fz_u8(&in) % (MURTY_MAX_L + 2u);       /* 0 and MAX+1 invalid */
+    const size_t rows = fz_u8(&in) % (LAP_MAX_ROWS + 2u); /* 0 and MAX+1 invalid */
+    const size_t cols = fz_u8(&in) % (LAP_MAX_COLS + 2u); /* 0 and MAX+1 invalid */
+    const size_t L = fz_u8(&in) % (MURTY_MAX_L + 2u);     /* 0 and MAX+1 invalid */
     bool numeric_bad = false;
     double scale = 1.0; /* largest magnitude of an allowed cost, times rows */
     for (size_t k = 0u; k < rows * cols; ++k) {

@@ -57,12 +57,12 @@ static const known_id_t OWN_TX[] = {
 
 /* What the harness knows independently of the node (the shadow model). */
 typedef struct {
-    bool fail_sends;            ///< the port refuses every frame while set
-    bool estop;                 ///< expected latch state
+    bool fail_sends;  ///< the port refuses every frame while set
+    bool estop;       ///< expected latch state
     uint32_t estop_emcy_in_latch;
     bool act_seq_known[MD_ELECTRODES];
     uint8_t act_seq[MD_ELECTRODES];
-    uint8_t halts_sent_mask;    ///< electrodes halted since the current op began
+    uint8_t halts_sent_mask;  ///< electrodes halted since the current op began
 } shadow_t;
 
 static shadow_t g_shadow;
@@ -212,8 +212,8 @@ static float param_value(fz_t *in, const md_param_def_t *d)
  * (NMT, parameter requests, heartbeats); the random bytes rarely would. */
 static void smart_payload(fz_t *in, md_frame_t *f)
 {
-    static const uint8_t NMT_CMDS[] = {MD_NMT_START, MD_NMT_STOP, MD_NMT_PREOP, MD_NMT_RESET_NODE,
-                                       MD_NMT_CLEAR_ESTOP, 7u};
+    static const uint8_t NMT_CMDS[] = {MD_NMT_START,      MD_NMT_STOP,        MD_NMT_PREOP,
+                                       MD_NMT_RESET_NODE, MD_NMT_CLEAR_ESTOP, 7u};
     static const uint8_t STATES[] = {MD_NODE_STATE_BOOT, MD_NODE_STATE_STOPPED, MD_NODE_STATE_OPERATIONAL,
                                      MD_NODE_STATE_PREOP, 9u};
     if (f->id == MD_CAN_NMT_FRAME_ID) {
@@ -330,9 +330,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         case 0u:
         case 1u:
         case 2u:
-        case 3u:
-            op_frame(&node, &in, now_us);
-            break;
+        case 3u: op_frame(&node, &in, now_us); break;
         case 4u: {
             /* Advance the clock: short steps mostly, sometimes past every timeout. */
             const uint32_t dt = fz_u16(&in);
@@ -342,12 +340,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             FUZZ_CHECK(md_node_next_deadline_us(&node, now_us) >= now_us); /* nothing overdue after a poll */
             break;
         }
-        case 5u:
-            op_step(&node, &in);
-            break;
-        case 6u:
-            g_shadow.fail_sends = !g_shadow.fail_sends;
-            break;
+        case 5u: op_step(&node, &in); break;
+        case 6u: g_shadow.fail_sends = !g_shadow.fail_sends; break;
         default: {
             const uint8_t pid = fz_u8(&in);
             const double v = md_node_param_read(&node, (md_param_id_t)(pid % (MD_P_COUNT + 2u)), now_us);

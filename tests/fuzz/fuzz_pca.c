@@ -216,8 +216,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     fz_t in;
     fz_init(&in, data, size);
     const uint8_t control = fz_u8(&in);
-    const size_t d = control % (MD_FEAT_DIM_MAX + 2u);                /* 0 and MAX+1 are invalid */
-    const size_t d_w = fz_u8(&in) % (MD_WAVE_LEN_MAX + 3u);           /* up to MAX+2: invalid */
+    const size_t d = control % (MD_FEAT_DIM_MAX + 2u);      /* 0 and MAX+1 are invalid */
+    const size_t d_w = fz_u8(&in) % (MD_WAVE_LEN_MAX + 3u); /* up to MAX+2: invalid */
     const uint8_t s = fz_u8(&in);
     const size_t stride = ((s & 0x80u) != 0u && d_w > 0u) ? d_w - 1u : d_w + (s & 3u);
     const size_t row = (stride > d_w) ? stride : d_w;
@@ -241,8 +241,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     }
     const md_status_t st = pca_fit(g_wave, n, stride, d_w, d, &g_work, &g_basis);
-    FUZZ_CHECK(st == MD_OK || st == MD_E_ARG || st == MD_E_DEGENERATE || st == MD_E_NUMERIC ||
-               st == MD_E_NOCONVERGE);
+    FUZZ_CHECK(st == MD_OK || st == MD_E_ARG || st == MD_E_DEGENERATE || st == MD_E_NUMERIC || st == MD_E_NOCONVERGE);
     if (st != MD_OK) {
         return 0;
     }

@@ -26,38 +26,38 @@
  * SIG(name, signal, is_float). Expanded twice: functions, then calls. */
 #include "fuzz_protocol_table.h"
 
-#define SIG(msg, sig, is_float)                                                                 \
-    {                                                                                            \
-        const bool in_range = md_can_##msg##_##sig##_is_in_range(s->sig);                       \
-        const double phys = md_can_##msg##_##sig##_decode(s->sig);                              \
-        FUZZ_CHECK((is_float) || isfinite(phys));                                               \
-        if (in_range) {                                                                          \
-            FUZZ_CHECK(isfinite(phys));                                                          \
-            FUZZ_CHECK(md_can_##msg##_##sig##_is_in_phys_range(phys));                           \
-        }                                                                                        \
+#define SIG(msg, sig, is_float)                                           \
+    {                                                                     \
+        const bool in_range = md_can_##msg##_##sig##_is_in_range(s->sig); \
+        const double phys = md_can_##msg##_##sig##_decode(s->sig);        \
+        FUZZ_CHECK((is_float) || isfinite(phys));                         \
+        if (in_range) {                                                   \
+            FUZZ_CHECK(isfinite(phys));                                   \
+            FUZZ_CHECK(md_can_##msg##_##sig##_is_in_phys_range(phys));    \
+        }                                                                 \
     }
 
-#define MSG(msg, length)                                                                         \
-    static void check_signals_##msg(const struct md_can_##msg##_t *s)                            \
-    {                                                                                            \
-        FUZZ_SIGNALS_##msg                                                                       \
-    }                                                                                            \
-    static void fuzz_##msg(const uint8_t *bytes, size_t size)                                    \
-    {                                                                                            \
-        struct md_can_##msg##_t a, b;                                                            \
-        memset(&a, 0, sizeof a);                                                                 \
-        memset(&b, 0, sizeof b);                                                                 \
-        const int rc = md_can_##msg##_unpack(&a, bytes, size);                                   \
-        FUZZ_CHECK((rc == 0) == (size >= (size_t)(length)));                                     \
-        if (rc != 0) {                                                                           \
-            return;                                                                              \
-        }                                                                                        \
-        uint8_t buf[MD_FRAME_MAX_DATA];                                                          \
-        FUZZ_CHECK(md_can_##msg##_pack(buf, &a, (size_t)(length) - 1u) < 0);                     \
-        FUZZ_CHECK(md_can_##msg##_pack(buf, &a, sizeof buf) == (int)(length));                   \
-        FUZZ_CHECK(md_can_##msg##_unpack(&b, buf, (size_t)(length)) == 0);                       \
-        FUZZ_CHECK(memcmp(&a, &b, sizeof a) == 0);                                               \
-        check_signals_##msg(&a);                                                                 \
+#define MSG(msg, length)                                                       \
+    static void check_signals_##msg(const struct md_can_##msg##_t *s)          \
+    {                                                                          \
+        FUZZ_SIGNALS_##msg                                                     \
+    }                                                                          \
+    static void fuzz_##msg(const uint8_t *bytes, size_t size)                  \
+    {                                                                          \
+        struct md_can_##msg##_t a, b;                                          \
+        memset(&a, 0, sizeof a);                                               \
+        memset(&b, 0, sizeof b);                                               \
+        const int rc = md_can_##msg##_unpack(&a, bytes, size);                 \
+        FUZZ_CHECK((rc == 0) == (size >= (size_t)(length)));                   \
+        if (rc != 0) {                                                         \
+            return;                                                            \
+        }                                                                      \
+        uint8_t buf[MD_FRAME_MAX_DATA];                                        \
+        FUZZ_CHECK(md_can_##msg##_pack(buf, &a, (size_t)(length)-1u) < 0);     \
+        FUZZ_CHECK(md_can_##msg##_pack(buf, &a, sizeof buf) == (int)(length)); \
+        FUZZ_CHECK(md_can_##msg##_unpack(&b, buf, (size_t)(length)) == 0);     \
+        FUZZ_CHECK(memcmp(&a, &b, sizeof a) == 0);                             \
+        check_signals_##msg(&a);                                               \
     }
 
 FUZZ_MESSAGES

@@ -25,7 +25,7 @@
 #include "fuzz_input.h"
 #include "recording.h"
 
-#define READ_CAP (1u << 16) ///< samples read per interval at most (longer ones are skipped)
+#define READ_CAP (1u << 16)  ///< samples read per interval at most (longer ones are skipped)
 
 static char g_dir[64];
 static char g_json[128];
@@ -153,8 +153,8 @@ static void check_samples(const rec_options_t *opt, const uint8_t *file, size_t 
         rec_conversion_t conv = {0u, 0u};
         rec_conversion_t want = {0u, 0u};
         /* one sample too little room is refused before anything is read */
-        FUZZ_CHECK(rec_read_interval(r, k, opt->channel, g_x, (size_t)iv->num_samples - 1u, &conv, err,
-                                     sizeof err) == MD_E_ARG);
+        FUZZ_CHECK(rec_read_interval(r, k, opt->channel, g_x, (size_t)iv->num_samples - 1u, &conv, err, sizeof err) ==
+                   MD_E_ARG);
         FUZZ_CHECK(rec_read_interval(r, k, opt->channel, g_x, READ_CAP, &conv, err, sizeof err) == MD_OK);
         for (uint64_t i = 0u; i < iv->num_samples; ++i) {
             const uint8_t *b = &file[(size_t)(iv->start_sample + i) * frame + (size_t)opt->channel * bps];
@@ -164,8 +164,8 @@ static void check_samples(const rec_options_t *opt, const uint8_t *file, size_t 
     }
     FUZZ_CHECK(rec_read_interval(r, r->n_intervals, opt->channel, g_x, READ_CAP, &(rec_conversion_t){0u, 0u}, err,
                                  sizeof err) == MD_E_ARG);
-    FUZZ_CHECK(rec_read_interval(r, 0u, r->n_channels, g_x, READ_CAP, &(rec_conversion_t){0u, 0u}, err,
-                                 sizeof err) == MD_E_ARG);
+    FUZZ_CHECK(rec_read_interval(r, 0u, r->n_channels, g_x, READ_CAP, &(rec_conversion_t){0u, 0u}, err, sizeof err) ==
+               MD_E_ARG);
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)

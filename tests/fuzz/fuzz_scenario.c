@@ -24,7 +24,6 @@ static scenario_t g_sc;
 static sim_world_t g_world;
 static char g_err[ERR_LEN];
 
-
 /* One line "fuzz.yaml:LINE: reason" (LINE >= 1), n bytes without its '\n'. */
 static void check_line(const char *s, size_t n)
 {
@@ -93,7 +92,8 @@ static void check_valid(void)
     for (uint32_t i = 1u; i < f->n_restarts; ++i) {
         FUZZ_CHECK(f->restart_at_s[i - 1u] <= f->restart_at_s[i]);
     }
-    FUZZ_CHECK(isfinite(sc->export_cfg.interval_s) && sc->export_cfg.interval_s > 0.0 && sc->export_cfg.intervals >= 1u);
+    FUZZ_CHECK(isfinite(sc->export_cfg.interval_s) && sc->export_cfg.interval_s > 0.0 &&
+               sc->export_cfg.intervals >= 1u);
     FUZZ_CHECK(scenario_make_world(sc, sc->seed, &g_world) == MD_OK);
 }
 

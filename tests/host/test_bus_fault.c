@@ -8,7 +8,7 @@
 #include "md_bus_fault.h"
 #include "unity.h"
 
-static md_bus_t g_tx_inner, g_rx_inner;   /* must not move while open */
+static md_bus_t g_tx_inner, g_rx_inner; /* must not move while open */
 static md_bus_fault_t g_fault;
 
 void setUp(void)
@@ -23,9 +23,9 @@ void setUp(void)
  * process-wide in-process tables for every later test. */
 void tearDown(void)
 {
-    md_bus_t *const eps[] = {&g_fault.bus, &g_tx_inner, &g_rx_inner};   /* the wrapper first */
+    md_bus_t *const eps[] = {&g_fault.bus, &g_tx_inner, &g_rx_inner}; /* the wrapper first */
     for (size_t i = 0; i < sizeof eps / sizeof eps[0]; ++i) {
-        if (eps[i]->ops != NULL) {   /* NULL: not opened (or wrapped) in this test */
+        if (eps[i]->ops != NULL) { /* NULL: not opened (or wrapped) in this test */
             md_bus_close(eps[i]);
         }
     }
@@ -43,7 +43,10 @@ static md_frame_t frame_n(uint32_t n)
     return f;
 }
 
-static uint32_t frame_no(const md_frame_t *f) { return (uint32_t)f->data[0] | ((uint32_t)f->data[1] << 8); }
+static uint32_t frame_no(const md_frame_t *f)
+{
+    return (uint32_t)f->data[0] | ((uint32_t)f->data[1] << 8);
+}
 
 /* Opens sender and receiver on one in-process bus; wraps the side asked. */
 static void open_pair(const md_bus_fault_params_t *p, bool wrap_rx, md_bus_t **tx, md_bus_t **rx)
@@ -58,7 +61,7 @@ static void open_pair(const md_bus_fault_params_t *p, bool wrap_rx, md_bus_t **t
 
 static void close_pair(void)
 {
-    md_bus_close(&g_fault.bus);   /* closes its inner endpoint */
+    md_bus_close(&g_fault.bus); /* closes its inner endpoint */
     md_bus_close(&g_tx_inner);
     md_bus_close(&g_rx_inner);
 }
@@ -75,7 +78,7 @@ static uint32_t run(md_bus_t *tx, md_bus_t *rx, uint32_t n, md_frame_t *got, uin
     while (k < cap && md_bus_receive(rx, &f, 0) == 1) {
         got[k++] = f;
     }
-    if (tx == &g_fault.bus) {   /* frames still held on the sender side */
+    if (tx == &g_fault.bus) { /* frames still held on the sender side */
         TEST_ASSERT_EQUAL_INT(0, md_bus_fault_flush(&g_fault));
         while (k < cap && md_bus_receive(rx, &f, 0) == 1) {
             got[k++] = f;
@@ -191,7 +194,7 @@ static void test_delay_releases_after_n_frames_inside_the_frame_window(void)
     md_bus_fault_default_params(&p);
     p.prob[MD_BUS_FAULT_DELAY] = 1.0;
     p.delay_frames = 3u;
-    p.frame_from = 2u;   /* only frame 2 */
+    p.frame_from = 2u; /* only frame 2 */
     p.frame_to = 3u;
     md_bus_t *tx, *rx;
     open_pair(&p, false, &tx, &rx);
@@ -229,7 +232,7 @@ static void test_receive_side_loss_and_idle_release_of_delayed_frames(void)
     p.directions = MD_BUS_FAULT_RX;
     p.prob[MD_BUS_FAULT_LOSS] = 1.0;
     p.frame_from = 0u;
-    p.frame_to = 2u;   /* the first two received frames are lost */
+    p.frame_to = 2u; /* the first two received frames are lost */
     md_bus_t *tx, *rx;
     open_pair(&p, true, &tx, &rx);
     TEST_ASSERT_EQUAL_UINT32(3u, run(tx, rx, 5u, g_got, 4096u));
@@ -266,13 +269,13 @@ static void test_time_window_and_id_filter(void)
     p.t_from_us = 1000;
     p.t_to_us = 2000;
     p.id_mask = 0x7FFu;
-    p.id_match = 0x301u;   /* frame_n(1), (5), (9)...: only those */
+    p.id_match = 0x301u; /* frame_n(1), (5), (9)...: only those */
     char why[160] = "";
     TEST_ASSERT_EQUAL_INT_MESSAGE(0, md_bus_open(&g_tx_inner, "inproc:fault", why, sizeof why), why);
     TEST_ASSERT_EQUAL_INT_MESSAGE(0, md_bus_open(&g_rx_inner, "inproc:fault", why, sizeof why), why);
     TEST_ASSERT_EQUAL_INT(0, md_bus_fault_wrap(&g_fault, &g_tx_inner, &p, test_clock, NULL));
     uint32_t sent = 0;
-    for (int64_t t = 0; t < 3000; t += 500) {   /* 6 time slots x 8 frames */
+    for (int64_t t = 0; t < 3000; t += 500) { /* 6 time slots x 8 frames */
         g_clock_us = t;
         for (uint32_t i = 0; i < 8u; ++i, ++sent) {
             const md_frame_t f = frame_n(sent);
@@ -302,7 +305,7 @@ static void test_bad_parameters_are_refused(void)
     p.prob[MD_BUS_FAULT_LOSS] = 1.5;
     TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_fault_wrap(&g_fault, &g_tx_inner, &p, NULL, NULL));
     p.prob[MD_BUS_FAULT_LOSS] = 0.6;
-    p.prob[MD_BUS_FAULT_DUP] = 0.6;   /* sum above 1 */
+    p.prob[MD_BUS_FAULT_DUP] = 0.6; /* sum above 1 */
     TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_fault_wrap(&g_fault, &g_tx_inner, &p, NULL, NULL));
     md_bus_fault_default_params(&p);
     p.delay_frames = 0u;
@@ -324,7 +327,7 @@ static void test_full_hold_queue_passes_frames_and_counts(void)
     md_bus_t *tx, *rx;
     open_pair(&p, false, &tx, &rx);
     const uint32_t n = MD_BUS_FAULT_HOLD_MAX + 5u;
-    TEST_ASSERT_EQUAL_UINT32(n, run(tx, rx, n, g_got, 4096u));   /* nothing lost */
+    TEST_ASSERT_EQUAL_UINT32(n, run(tx, rx, n, g_got, 4096u)); /* nothing lost */
     const md_bus_fault_counters_t c = md_bus_fault_counters(&g_fault);
     TEST_ASSERT_EQUAL_UINT64(n, c.injected[MD_BUS_FAULT_DELAY] + c.hold_full);
     TEST_ASSERT_GREATER_THAN_UINT(0u, (unsigned)c.hold_full);

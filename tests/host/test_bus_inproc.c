@@ -187,12 +187,12 @@ static void test_invalid_frames_are_refused_on_send_and_counted(void)
     open_ok(a, "inproc:bad");
     open_ok(b, "inproc:bad");
     const md_frame_t bad[] = {
-        make_frame(0x800, 1, 0, 0),                                      // std id too large
-        make_frame(0x20000000u, 1, MD_FRAME_FLAG_EXT, 0),                // ext id too large
-        make_frame(0x100, 9, 0, 0),                                      // classic len > 8
-        make_frame(0x100, 13, MD_FRAME_FLAG_FD, 0),                      // not an FD length
-        make_frame(0x100, 65, MD_FRAME_FLAG_FD, 0),                      // beyond FD
-        make_frame(0x100, 1, 0x08, 0),                                   // unknown flag
+        make_frame(0x800, 1, 0, 0),                        // std id too large
+        make_frame(0x20000000u, 1, MD_FRAME_FLAG_EXT, 0),  // ext id too large
+        make_frame(0x100, 9, 0, 0),                        // classic len > 8
+        make_frame(0x100, 13, MD_FRAME_FLAG_FD, 0),        // not an FD length
+        make_frame(0x100, 65, MD_FRAME_FLAG_FD, 0),        // beyond FD
+        make_frame(0x100, 1, 0x08, 0),                     // unknown flag
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
         TEST_ASSERT_EQUAL_INT(-EINVAL, md_bus_send(a, &bad[i]));

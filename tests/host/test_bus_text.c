@@ -88,20 +88,20 @@ static void test_fd_flag_nibble_takes_brs_and_ignores_esi_fdf(void)
 static void test_refused_syntax_says_why(void)
 {
     static const char *const bad[] = {
-        "",                    // nothing
-        "123",                 // no '#'
-        "12#00",               // 2-digit id
-        "1234#00",             // 4-digit id
-        "800#00",              // 11-bit id out of range
-        "20000000#00",         // 29-bit id out of range
-        "12G#00",              // not hex
-        "123#ABC",             // odd digits
+        "",                         // nothing
+        "123",                      // no '#'
+        "12#00",                    // 2-digit id
+        "1234#00",                  // 4-digit id
+        "800#00",                   // 11-bit id out of range
+        "20000000#00",              // 29-bit id out of range
+        "12G#00",                   // not hex
+        "123#ABC",                  // odd digits
         "123#0011223344556677889",  // classic > 8 bytes (and odd)
         "123#001122334455667788",   // classic > 8 bytes
-        "123#R",               // RTR
-        "123##",               // FD without flag digit
-        "123##G00",            // bad flag digit
-        "123#00 11",           // space
+        "123#R",                    // RTR
+        "123##",                    // FD without flag digit
+        "123##G00",                 // bad flag digit
+        "123#00 11",                // space
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
         md_frame_t f;

@@ -26,8 +26,8 @@ typedef struct {
     double next_read_s;
     uint8_t seq;
     uint32_t commands;
-    uint32_t stop_cmd;      /* the command that ended stalled at an end stop */
-    double max_um, min_um;  /* true extremes during the current move */
+    uint32_t stop_cmd;     /* the command that ended stalled at an end stop */
+    double max_um, min_um; /* true extremes during the current move */
 } rig_t;
 
 static rig_t rig;
@@ -51,8 +51,7 @@ static void rig_init(double start_um, uint64_t seed)
         TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&servo, k, count, (double)(float)cal->coef[k]));
     }
     TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&servo, MD_SERVO_CAL_INDEX_MID, count, (double)(float)cal->code_mid));
-    TEST_ASSERT_EQUAL_INT(MD_OK,
-                          md_servo_calib(&servo, MD_SERVO_CAL_INDEX_HALF, count, (double)(float)cal->code_half));
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&servo, MD_SERVO_CAL_INDEX_HALF, count, (double)(float)cal->code_half));
     TEST_ASSERT_TRUE(servo.calibrated);
 }
 
@@ -138,8 +137,9 @@ static void test_converges_on_the_simulator_models(void)
      * most one correction */
     TEST_ASSERT_LESS_OR_EQUAL_UINT(6u, iters_max);
     char line[160];
-    (void)snprintf(line, sizeof line, "40 moves on md_sim models: worst true error %.3f um, at most %u commands per move",
-                   worst, (unsigned)iters_max);
+    (void)snprintf(line, sizeof line,
+                   "40 moves on md_sim models: worst true error %.3f um, at most %u commands per move", worst,
+                   (unsigned)iters_max);
     TEST_MESSAGE(line);
     TEST_ASSERT_LESS_THAN_DOUBLE(2.0, worst);
 }

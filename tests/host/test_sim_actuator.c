@@ -37,7 +37,7 @@ static void test_step_statistics_match_parameters(void)
         s2 += d_nm * d_nm;
     }
     const double mean = s / n, sd = sqrt(s2 / n - mean * mean);
-    TEST_ASSERT_DOUBLE_WITHIN(0.5, 40.0, mean);          /* SE ~ 0.03 nm */
+    TEST_ASSERT_DOUBLE_WITHIN(0.5, 40.0, mean); /* SE ~ 0.03 nm */
     TEST_ASSERT_DOUBLE_WITHIN(0.01, 0.10, sd / mean);
 }
 
@@ -53,8 +53,8 @@ static void test_retract_steps_are_shorter(void)
     /* 10000 steps: 400 um forward; back ~0.85 of it; misses/slips cost < 1 % */
     TEST_ASSERT_DOUBLE_WITHIN(6.0, 400.0, adv);
     TEST_ASSERT_DOUBLE_WITHIN(0.02, 0.85, -ret / adv);
-    TEST_ASSERT_TRUE(act.missed_steps > 0u);   /* 20000 steps at p = 0.002 */
-    TEST_ASSERT_TRUE(act.slips > 0u);          /* 20000 steps at p = 0.0005 */
+    TEST_ASSERT_TRUE(act.missed_steps > 0u); /* 20000 steps at p = 0.002 */
+    TEST_ASSERT_TRUE(act.slips > 0u);        /* 20000 steps at p = 0.0005 */
 }
 
 static void test_steps_follow_commanded_rate_and_max_rate(void)
@@ -75,7 +75,7 @@ static void test_steps_follow_commanded_rate_and_max_rate(void)
 
 static void test_lower_end_stop_stalls_and_is_never_passed(void)
 {
-    init_default(5590.0, 9u);   /* 10 um above the lower stop */
+    init_default(5590.0, 9u); /* 10 um above the lower stop */
     TEST_ASSERT_EQUAL_INT(MD_OK, actuator_command(&act, 0.0, 5000u, 1, 2000.0));
     double worst = 0.0;
     for (int i = 1; i <= 400; ++i) {
@@ -87,7 +87,7 @@ static void test_lower_end_stop_stalls_and_is_never_passed(void)
     TEST_ASSERT_TRUE(st.at_lower_stop);
     TEST_ASSERT_FALSE(st.at_upper_stop);
     TEST_ASSERT_EQUAL_UINT32(1u, st.stall_count);
-    TEST_ASSERT_TRUE(st.steps_done < 400u);     /* ~250 steps of 40 nm */
+    TEST_ASSERT_TRUE(st.steps_done < 400u); /* ~250 steps of 40 nm */
     TEST_ASSERT_TRUE(worst <= 5600.0);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 5600.0, act.position_um);
     /* pushing again stalls again, at once, and still does not pass */
@@ -127,7 +127,7 @@ static void test_no_backlash_on_reversal(void)
     (void)actuator_advance_to(&act, 1.0);
     TEST_ASSERT_EQUAL_INT(MD_OK, actuator_command(&act, 1.0, 1u, -1, 1000.0));
     const double back = actuator_advance_to(&act, 1.5);
-    TEST_ASSERT_TRUE(back < -0.015);   /* a full retract step (~34 nm), not zero */
+    TEST_ASSERT_TRUE(back < -0.015); /* a full retract step (~34 nm), not zero */
 }
 
 static void test_stream_depends_on_seed_and_electrode(void)

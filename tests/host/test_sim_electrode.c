@@ -44,7 +44,7 @@ static void test_background_rms_matches_model(void)
     const double n = 600000.0;
     const double rms = sqrt(s2 / n - (s / n) * (s / n));
     TEST_ASSERT_DOUBLE_WITHIN(0.05 * a.bg_rms_uv, a.bg_rms_uv, rms);
-    TEST_ASSERT_DOUBLE_WITHIN(0.3, 0.0, s / n);   /* band-pass: no DC */
+    TEST_ASSERT_DOUBLE_WITHIN(0.3, 0.0, s / n); /* band-pass: no DC */
 }
 
 /* Ground truth: each reported spike is in the chunk, and the signal there
@@ -57,7 +57,7 @@ static void test_ground_truth_spikes_are_in_the_signal(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, sim_electrode_init(&a, &c, 2u, 0u));
     const uint64_t c0 = a.cursor;
     const size_t n = sim_electrode_generate(&a, buf_a, 60000u, gt_a, 4096u);
-    TEST_ASSERT_TRUE(n > 20u && n < 80u);   /* 20 Hz over 2 s */
+    TEST_ASSERT_TRUE(n > 20u && n < 80u); /* 20 Hz over 2 s */
     for (size_t k = 0u; k < n; ++k) {
         TEST_ASSERT_TRUE(gt_a[k].sample >= c0 && gt_a[k].sample < c0 + 60000u);
         TEST_ASSERT_EQUAL_INT32(0, gt_a[k].neuron_id);
@@ -106,7 +106,7 @@ static void test_output_independent_of_chunking(void)
 static void test_streams_are_independent_per_component(void)
 {
     sim_electrode_config_t c1, c2;
-    one_neuron(&c1, 3000.0, 20.0);   /* far away: not rendered */
+    one_neuron(&c1, 3000.0, 20.0); /* far away: not rendered */
     c1.signal.large_artifact_rate_hz = 0.0;
     c2 = c1;
     c2.n_neurons = 2u;
@@ -173,7 +173,7 @@ static void test_motion_artifact_after_move(void)
     c.signal.large_artifact_rate_hz = 0.0;
     TEST_ASSERT_EQUAL_INT(MD_OK, sim_electrode_init(&a, &c, 6u, 0u));
     (void)sim_electrode_command(&a, 20u, 1, 2000.0);
-    sim_electrode_advance(&a, 300u);   /* the 20 steps take 10 ms */
+    sim_electrode_advance(&a, 300u); /* the 20 steps take 10 ms */
     (void)sim_electrode_generate(&a, buf_a, 60000u, gt_a, 4096u);
     double early = 0.0, late = 0.0;
     for (int i = 0; i < 3000; ++i) {

@@ -123,7 +123,7 @@ static void test_same_seed_gives_byte_identical_files(void)
         TEST_ASSERT_TRUE(n1 > 0u);
         TEST_ASSERT_EQUAL_size_t(n1, n2);
         TEST_ASSERT_EQUAL_MEMORY(a, b, n1);
-        if (i == 0) {   /* another seed: another recording of the same size */
+        if (i == 0) { /* another seed: another recording of the same size */
             TEST_ASSERT_EQUAL_size_t(n1, n3);
             TEST_ASSERT_TRUE(memcmp(a, c, n1) != 0);
         }
@@ -141,7 +141,7 @@ static void test_files_are_consistent(void)
     TEST_ASSERT_NOT_NULL(bin);
     TEST_ASSERT_NOT_NULL(json);
     TEST_ASSERT_NOT_NULL(csv);
-    const size_t samples = 3u * 15000u;   /* 3 intervals of 0.5 s at 30 kHz */
+    const size_t samples = 3u * 15000u; /* 3 intervals of 0.5 s at 30 kHz */
     TEST_ASSERT_EQUAL_size_t(samples * 2u * sizeof(int16_t), nbin);
     TEST_ASSERT_NOT_NULL(strstr(json, "\"sampling_frequency\": 30000.000"));
     TEST_ASSERT_NOT_NULL(strstr(json, "\"num_channels\": 2"));
@@ -167,8 +167,8 @@ static void test_files_are_consistent(void)
         p += used;
     }
     TEST_ASSERT_EQUAL_INT('\0', *p);
-    TEST_ASSERT_TRUE(ch0 > 20 && ch0 < 80);   /* 30 Hz over 1.5 s */
-    TEST_ASSERT_TRUE(rows > ch0);            /* the random neurons of channel 1 fire too */
+    TEST_ASSERT_TRUE(ch0 > 20 && ch0 < 80); /* 30 Hz over 1.5 s */
+    TEST_ASSERT_TRUE(rows > ch0);           /* the random neurons of channel 1 fire too */
 }
 
 static void test_bad_directory_is_reported(void)

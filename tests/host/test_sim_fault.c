@@ -15,7 +15,7 @@
 void setUp(void) {}
 void tearDown(void) {}
 
-static sim_electrode_t g_a, g_b;   /* large: static */
+static sim_electrode_t g_a, g_b; /* large: static */
 static int16_t g_xa[30000], g_xb[30000];
 
 static void two_electrodes(const sim_model_faults_t *f)
@@ -48,7 +48,7 @@ static void test_hall_glitch_jumps_inside_window_only(void)
         }
     }
     TEST_ASSERT_EQUAL_UINT64(jumps, s.glitches);
-    TEST_ASSERT_GREATER_OR_EQUAL_UINT(25u, jumps);   /* binomial(100, 0.5): mean 50, sd 5 */
+    TEST_ASSERT_GREATER_OR_EQUAL_UINT(25u, jumps); /* binomial(100, 0.5): mean 50, sd 5 */
     TEST_ASSERT_LESS_OR_EQUAL_UINT(75u, jumps);
     /* clamped to the ADC range */
     f.hall_glitch_prob = 1.0;
@@ -117,7 +117,7 @@ static void test_actuator_slip_moves_back(void)
     /* commanded +0.4 um deeper; every step slipped 2 um back instead */
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, -20.0, actuator_advance_to(&a, 1.0));
     TEST_ASSERT_EQUAL_UINT64(10u, a.fault_slips);
-    TEST_ASSERT_EQUAL_UINT32(10u, actuator_status(&a).steps_done);   /* the driver believes they were done */
+    TEST_ASSERT_EQUAL_UINT32(10u, actuator_status(&a).steps_done); /* the driver believes they were done */
 }
 
 static void test_adc_saturation_pins_samples_to_the_rails(void)
@@ -130,7 +130,7 @@ static void test_adc_saturation_pins_samples_to_the_rails(void)
     (void)sim_electrode_generate(&g_b, g_xb, 30000u, NULL, 0u);
     for (uint32_t i = 0; i < 30000u; ++i) {
         if (i < 6000u || i >= 12000u) {
-            TEST_ASSERT_EQUAL_INT(g_xa[i], g_xb[i]);   /* outside: sample-identical */
+            TEST_ASSERT_EQUAL_INT(g_xa[i], g_xb[i]); /* outside: sample-identical */
         } else {
             TEST_ASSERT_TRUE(g_xb[i] == 32767 || g_xb[i] == -32768);
         }
@@ -170,11 +170,11 @@ static void test_hall_fault_through_the_electrode(void)
     sim_model_faults_default(&f);
     f.hall_stuck = (sim_window_t){0.1, 10.0};
     two_electrodes(&f);
-    const uint32_t first = sim_electrode_hall_read(&g_b);   /* t = 0: healthy */
+    const uint32_t first = sim_electrode_hall_read(&g_b); /* t = 0: healthy */
     TEST_ASSERT_EQUAL_UINT32(sim_electrode_hall_read(&g_a), first);
-    sim_electrode_advance(&g_b, 6000u);   /* 0.2 s */
+    sim_electrode_advance(&g_b, 6000u); /* 0.2 s */
     TEST_ASSERT_EQUAL_INT(MD_OK, sim_electrode_command(&g_b, 2000u, 1, 2000.0));
-    sim_electrode_advance(&g_b, 60000u);  /* +2 s: moved ~80 um */
+    sim_electrode_advance(&g_b, 60000u); /* +2 s: moved ~80 um */
     TEST_ASSERT_GREATER_THAN_DOUBLE(1050.0, sim_electrode_tip_um(&g_b));
     TEST_ASSERT_EQUAL_UINT32(first, sim_electrode_hall_read(&g_b));
 }
@@ -184,7 +184,10 @@ static void test_hall_fault_through_the_electrode(void)
 static scenario_t g_sc;
 static char g_err[4096];
 
-static int parse(const char *y) { return scenario_parse(&g_sc, y, strlen(y), "f.yaml", g_err, sizeof g_err); }
+static int parse(const char *y)
+{
+    return scenario_parse(&g_sc, y, strlen(y), "f.yaml", g_err, sizeof g_err);
+}
 
 static void test_scenario_faults_parsed(void)
 {
@@ -208,10 +211,10 @@ static void test_scenario_faults_parsed(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1500.0, f1->hall_glitch_codes);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 0.2, f1->hall_glitch_prob);
     TEST_ASSERT_FALSE(f0->hall_glitch.to_s > f0->hall_glitch.from_s);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 6.0, f0->act_stall.to_s);   /* both electrodes */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 6.0, f0->act_stall.to_s); /* both electrodes */
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 6.0, f1->act_stall.to_s);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 4.0, f0->act_slip_um);
-    TEST_ASSERT_TRUE(f0->act_slip.to_s > 1e100);                 /* forever */
+    TEST_ASSERT_TRUE(f0->act_slip.to_s > 1e100); /* forever */
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 2000.0, f1->storm_amp_uv);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 7.0, f0->hall_stuck.from_s);
     TEST_ASSERT_EQUAL_UINT32(2u, g_sc.faults.n_bus);
@@ -241,10 +244,14 @@ static void expect_error(const char *y, const char *needle)
 
 static void test_scenario_fault_errors_name_file_and_line(void)
 {
-    expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {kind: meteor}\n", "f.yaml:3: unknown fault kind 'meteor'");
-    expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {prob: 0.1}\n", "f.yaml:3: missing required field 'kind'");
-    expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {kind: bus_loss}\n", "f.yaml:3: fault kind bus_loss needs 'prob'");
-    expect_error("electrodes: [{start_um: 1000}]\nfaults:\n\n  - {kind: bus_loss, prob: 2}\n", "f.yaml:4: 'prob' = 2 out of range");
+    expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {kind: meteor}\n",
+                 "f.yaml:3: unknown fault kind 'meteor'");
+    expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {prob: 0.1}\n",
+                 "f.yaml:3: missing required field 'kind'");
+    expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {kind: bus_loss}\n",
+                 "f.yaml:3: fault kind bus_loss needs 'prob'");
+    expect_error("electrodes: [{start_um: 1000}]\nfaults:\n\n  - {kind: bus_loss, prob: 2}\n",
+                 "f.yaml:4: 'prob' = 2 out of range");
     expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {kind: hall_stuck, prob: 0.5}\n",
                  "f.yaml:3: 'prob' does not apply to fault kind hall_stuck");
     expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {kind: hall_stuck, electrode: 1}\n",
@@ -258,7 +265,8 @@ static void test_scenario_fault_errors_name_file_and_line(void)
     expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {kind: adc_saturation}\n  - {kind: adc_saturation}\n",
                  "f.yaml:4: a second adc_saturation fault on one electrode");
     expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {kind: controller_restart, at_s: 9}\n"
-                 "  - {kind: controller_restart, at_s: 3}\n", "f.yaml:4: controller restarts");
+                 "  - {kind: controller_restart, at_s: 3}\n",
+                 "f.yaml:4: controller restarts");
     expect_error("electrodes: [{start_um: 1000}]\nfaults: {kind: bus_loss}\n", "f.yaml:2: faults must be a sequence");
     expect_error("electrodes: [{start_um: 1000}]\nfaults:\n  - {kind: bus_dup, prob: 0.1, wobble: 1}\n",
                  "f.yaml:3: unknown key 'wobble' in fault");
@@ -266,10 +274,10 @@ static void test_scenario_fault_errors_name_file_and_line(void)
 
 static void test_shipped_fault_scenarios_load(void)
 {
-    static const char *const names[] = {
-        "bus_loss", "bus_corrupt", "bus_dup", "bus_delay", "bus_reorder", "node_silent_hall", "node_silent_act",
-        "node_silent_fe", "hall_glitch", "hall_stuck", "actuator_stall", "actuator_slip", "adc_saturation",
-        "artifact_storm", "controller_restart"};
+    static const char *const names[] = {"bus_loss",       "bus_corrupt",      "bus_dup",           "bus_delay",
+                                        "bus_reorder",    "node_silent_hall", "node_silent_act",   "node_silent_fe",
+                                        "hall_glitch",    "hall_stuck",       "actuator_stall",    "actuator_slip",
+                                        "adc_saturation", "artifact_storm",   "controller_restart"};
     char dir[512];
     (void)snprintf(dir, sizeof dir, "%s", __FILE__);
     char *slash = strrchr(dir, '/');

@@ -17,7 +17,7 @@ static void test_characteristic_is_nonlinear_and_monotonic(void)
     const double slope_mid = hall_ideal_code(&p, 2801.0) - hall_ideal_code(&p, 2800.0);
     const double slope_end = hall_ideal_code(&p, 5600.0) - hall_ideal_code(&p, 5599.0);
     TEST_ASSERT_TRUE(slope_end > 0.0);
-    TEST_ASSERT_TRUE(slope_end < 0.6 * slope_mid);   /* clearly non-linear */
+    TEST_ASSERT_TRUE(slope_end < 0.6 * slope_mid); /* clearly non-linear */
     for (double z = 0.0; z < 5600.0; z += 7.0) {
         TEST_ASSERT_TRUE(hall_ideal_code(&p, z + 7.0) > hall_ideal_code(&p, z));
     }
@@ -96,7 +96,7 @@ static void test_thermal_drift(void)
     const int c0 = (int)hall_read(&h, 2800.0, 0.0);
     const int c1 = (int)hall_read(&h, 2800.0, 3600.0);
     TEST_ASSERT_EQUAL_INT(2, c1 - c0);
-    const int cq = (int)hall_read(&h, 2800.0, 450.0);   /* a quarter period: + amplitude */
+    const int cq = (int)hall_read(&h, 2800.0, 450.0); /* a quarter period: + amplitude */
     TEST_ASSERT_EQUAL_INT(3, cq - c0);
 }
 

@@ -62,8 +62,8 @@ static void test_shape_changes_with_position_but_ptp_follows_distance(void)
     }
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, neuron_amplitude_uv(&m, &nrn, hypot(20.0, 40.0)), hi - lo);
     const double corr = dot / sqrt(na * nb);
-    TEST_ASSERT_TRUE(corr < 0.97);   /* features move between the two positions */
-    TEST_ASSERT_TRUE(corr > 0.5);    /* ... but it is still the same kind of spike */
+    TEST_ASSERT_TRUE(corr < 0.97); /* features move between the two positions */
+    TEST_ASSERT_TRUE(corr > 0.5);  /* ... but it is still the same kind of spike */
 }
 
 /* SNR along the track: exactly one local maximum, at the neuron's depth. */
@@ -118,7 +118,7 @@ static void test_rate_and_refractory_period(void)
         n++;
         neuron_pop_spike(&nrn);
     }
-    const double rate = (double)n / T;   /* expected 20 +- 0.5 (Poisson-ish SE ~0.15) */
+    const double rate = (double)n / T; /* expected 20 +- 0.5 (Poisson-ish SE ~0.15) */
     TEST_ASSERT_DOUBLE_WITHIN(0.6, 20.0, rate);
     TEST_ASSERT_TRUE(min_isi >= p.refractory_ms * 1e-3);
 }
@@ -159,7 +159,7 @@ static void test_intermittent_silences(void)
     double last = 0.0;
     for (uint32_t guard = 0u; nrn.next_s < T && guard < 10000000u; ++guard) {
         if (nrn.next_s - last > 5.0) {
-            long_gaps++;   /* at 20 Hz a 5 s gap only happens in a silence */
+            long_gaps++; /* at 20 Hz a 5 s gap only happens in a silence */
         }
         last = nrn.next_s;
         n++;
@@ -167,7 +167,7 @@ static void test_intermittent_silences(void)
     }
     const double rate = (double)n / T;
     TEST_ASSERT_DOUBLE_WITHIN(2.0, 10.0, rate);
-    TEST_ASSERT_TRUE(long_gaps > 200u);   /* ~333 silences expected */
+    TEST_ASSERT_TRUE(long_gaps > 200u); /* ~333 silences expected */
 }
 
 static void test_appearance_and_disappearance(void)
@@ -205,10 +205,10 @@ static void test_neuron_drift_moves_snr_peak(void)
     TEST_ASSERT_EQUAL_size_t(1u, sim_electrode_truth(&el, &tr, 1u));
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1200.0, tr.snr_peak_depth_um);
     const double snr0 = tr.snr;
-    sim_electrode_advance(&el, 30000u * 300u);   /* 5 min of drift: 20 um deeper */
+    sim_electrode_advance(&el, 30000u * 300u); /* 5 min of drift: 20 um deeper */
     TEST_ASSERT_EQUAL_size_t(1u, sim_electrode_truth(&el, &tr, 1u));
     TEST_ASSERT_DOUBLE_WITHIN(1e-6, 1220.0, tr.snr_peak_depth_um);
-    TEST_ASSERT_TRUE(tr.snr < snr0);   /* the tip (at 1000 um) is now farther away */
+    TEST_ASSERT_TRUE(tr.snr < snr0); /* the tip (at 1000 um) is now farther away */
 }
 
 static void test_bad_parameters_are_named(void)

@@ -41,7 +41,7 @@ static void expect(const char *needle)
 static void test_shipped_scenarios_load(void)
 {
     const char *names[7] = {"single_neuron", "crossing_clusters", "appearing_neuron", "intermittent_neuron",
-                            "drift_away", "empty_tissue", "three_electrodes"};
+                            "drift_away",    "empty_tissue",      "three_electrodes"};
     for (int i = 0; i < 7; ++i) {
         char rel[128];
         (void)snprintf(rel, sizeof rel, "../../scenarios/%s.yaml", names[i]);
@@ -80,14 +80,14 @@ static void test_defaults_and_overrides(void)
     TEST_ASSERT_EQUAL_UINT32(2u, sc.n_electrodes);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 50.0, sc.electrodes[0].actuator.step_nm);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 30.0, sc.electrodes[1].actuator.step_nm);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 0.85, sc.electrodes[1].actuator.retract_ratio);  /* default kept */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 0.85, sc.electrodes[1].actuator.retract_ratio); /* default kept */
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1000.0, sc.electrodes[0].start_um);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 5.0, sc.electrodes[1].start_um);
     TEST_ASSERT_EQUAL_UINT32(2u, sc.electrodes[0].n_neurons);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 3.0, sc.electrodes[0].neurons[0].rate_hz);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 7.0, sc.electrodes[0].neurons[1].rate_hz);
     TEST_ASSERT_EQUAL_INT(NEURON_TRIPHASIC, sc.electrodes[0].neurons[1].shape);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 20.0, sc.electrodes[0].neurons[1].x_um);     /* default */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 20.0, sc.electrodes[0].neurons[1].x_um); /* default */
     TEST_ASSERT_EQUAL_UINT32(20u, sc.export_cfg.intervals);
 }
 

@@ -28,7 +28,7 @@ static void test_slow_drift_um_per_min(void)
     tissue_advance_to(&t, 60.0, 0.0);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 0.0, tissue_displacement_um(&t));
     tissue_advance_to(&t, 660.0, 0.0);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 5.0, tissue_displacement_um(&t));   /* 10 min * 0.5 um/min */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 5.0, tissue_displacement_um(&t)); /* 10 min * 0.5 um/min */
 }
 
 static void test_decompression_after_insertion(void)
@@ -86,7 +86,7 @@ static void test_breathing_and_heartbeat(void)
     p.heartbeat_um = 0.5;
     p.heartbeat_hz = 1.0;
     TEST_ASSERT_EQUAL_INT(MD_OK, tissue_init(&t, &p));
-    tissue_advance_to(&t, 1.0, 0.0);   /* breathing at its crest, heartbeat at a zero */
+    tissue_advance_to(&t, 1.0, 0.0); /* breathing at its crest, heartbeat at a zero */
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 2.0, tissue_displacement_um(&t));
     tissue_advance_to(&t, 1.25, 0.0);
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 2.0 * sin(2.0 * 3.141592653589793 * 0.3125) + 0.5, tissue_displacement_um(&t));

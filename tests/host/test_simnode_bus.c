@@ -14,7 +14,10 @@ static md_bus_t sim_ep, ctrl_ep;
 static simnode_world_t *world;
 static simnode_plant_t plant;
 
-static int bus_sink(void *ctx, const md_frame_t *f) { return md_bus_send((md_bus_t *)ctx, f); }
+static int bus_sink(void *ctx, const md_frame_t *f)
+{
+    return md_bus_send((md_bus_t *)ctx, f);
+}
 
 void setUp(void)
 {
@@ -67,7 +70,7 @@ static void drain_ctrl(void)
 
 static void test_rec_req_over_the_bus(void)
 {
-    drain_ctrl();   /* start-up announcements */
+    drain_ctrl(); /* start-up announcements */
     const struct md_can_rec_req_t req = {1u, 500u, 95u};
     uint8_t d[8];
     TEST_ASSERT_EQUAL_INT(8, md_can_rec_req_pack(d, &req, sizeof d));
@@ -101,7 +104,7 @@ static void test_rec_req_over_the_bus(void)
     TEST_ASSERT_TRUE(ended);
     TEST_ASSERT_EQUAL_UINT32(4u, frames);
     TEST_ASSERT_EQUAL_UINT32(95u, samples);
-    TEST_ASSERT_EQUAL_UINT64(3167u, last_clock);   /* ceil(95 / 30 kHz) in us */
+    TEST_ASSERT_EQUAL_UINT64(3167u, last_clock); /* ceil(95 / 30 kHz) in us */
     TEST_ASSERT_EQUAL_UINT64(0u, sim_ep.stats.tx_errors);
 }
 

@@ -35,9 +35,27 @@ static void test_defaults(void)
 
 static void test_every_option(void)
 {
-    const char *argv[] = {"sim", "--scenario", "a.yaml", "--seed", "18446744073709551615", "--bus", "udp:5000",
-                          "--realtime", "--export-recording", "out", "--truth", "t.jsonl", "--hall-rate", "250.5",
-                          "--calib-period-ms", "2000", "--no-autostart", "--duration-s", "60", "--pace", "0"};
+    const char *argv[] = {"sim",
+                          "--scenario",
+                          "a.yaml",
+                          "--seed",
+                          "18446744073709551615",
+                          "--bus",
+                          "udp:5000",
+                          "--realtime",
+                          "--export-recording",
+                          "out",
+                          "--truth",
+                          "t.jsonl",
+                          "--hall-rate",
+                          "250.5",
+                          "--calib-period-ms",
+                          "2000",
+                          "--no-autostart",
+                          "--duration-s",
+                          "60",
+                          "--pace",
+                          "0"};
     TEST_ASSERT_EQUAL_INT_MESSAGE(0, parse(21, argv), msg);
     TEST_ASSERT_TRUE(cli.seed_given);
     TEST_ASSERT_EQUAL_UINT64(UINT64_MAX, cli.seed);
@@ -58,9 +76,9 @@ static void test_help_needs_nothing_else(void)
     TEST_ASSERT_EQUAL_INT(0, parse(2, argv));
     TEST_ASSERT_TRUE(cli.help);
     /* the text documents every option */
-    static const char *const opts[] = {"--scenario", "--seed", "--bus", "--realtime", "--export-recording",
-                                       "--truth", "--hall-rate", "--calib-period-ms", "--no-autostart",
-                                       "--duration-s", "--pace", "--help"};
+    static const char *const opts[] = {"--scenario",         "--seed",       "--bus",       "--realtime",
+                                       "--export-recording", "--truth",      "--hall-rate", "--calib-period-ms",
+                                       "--no-autostart",     "--duration-s", "--pace",      "--help"};
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++) {
         TEST_ASSERT_NOT_NULL(strstr(sim_cli_usage(), opts[i]));
     }

@@ -50,7 +50,7 @@ void setUp(void)
     n_cap = 0u;
     cap_overflow = 0u;
     make_plant(true, true, 7u);
-    n_cap = 0u;   /* the start-up batch is checked by its own test */
+    n_cap = 0u; /* the start-up batch is checked by its own test */
 }
 
 void tearDown(void)
@@ -188,8 +188,8 @@ static void test_start_announces_every_node_in_one_batch(void)
     TEST_ASSERT_EQUAL_size_t(3u, count_id(MD_CAN_ACT_STATUS_FRAME_ID));
     TEST_ASSERT_EQUAL_size_t(3u, count_id(MD_CAN_HALL_READING_FRAME_ID));
     TEST_ASSERT_EQUAL_size_t(3u, count_id(MD_CAN_FE_INFO_FRAME_ID));
-    TEST_ASSERT_EQUAL_size_t(3u * (10u + 2u), count_id(MD_CAN_HALL_CALIB_FRAME_ID));  /* degree 9 + mid, half */
-    TEST_ASSERT_EQUAL_size_t(1u, count_id(MD_CAN_SIM_CLOCK_FRAME_ID));  /* time did not move */
+    TEST_ASSERT_EQUAL_size_t(3u * (10u + 2u), count_id(MD_CAN_HALL_CALIB_FRAME_ID)); /* degree 9 + mid, half */
+    TEST_ASSERT_EQUAL_size_t(1u, count_id(MD_CAN_SIM_CLOCK_FRAME_ID));               /* time did not move */
     struct md_can_fe_info_t info;
     TEST_ASSERT_EQUAL_INT(0, md_can_fe_info_unpack(&info, last_id(MD_CAN_FE_INFO_FRAME_ID)->data, 12u));
     TEST_ASSERT_EQUAL_UINT32(30000u, info.sample_rate_hz);
@@ -209,7 +209,7 @@ static void test_act_cmd_moves_and_reports_with_seq(void)
     TEST_ASSERT_EQUAL_UINT(0u, cap_overflow);
     TEST_ASSERT_EQUAL_HEX32(MD_CAN_SIM_CLOCK_FRAME_ID, cap[0].id);
     TEST_ASSERT_EQUAL_UINT64(0u, clock_of(&cap[0]));
-    const struct md_can_act_status_t first = act_status_of(&cap[1]);   /* the acknowledgement */
+    const struct md_can_act_status_t first = act_status_of(&cap[1]); /* the acknowledgement */
     TEST_ASSERT_EQUAL_UINT8(1u, first.electrode);
     TEST_ASSERT_EQUAL_UINT8(MD_ACT_MOVING, first.state);
     TEST_ASSERT_EQUAL_UINT8(77u, first.cmd_seq);
@@ -229,7 +229,7 @@ static void test_act_cmd_moves_and_reports_with_seq(void)
     TEST_ASSERT_EQUAL_size_t(3u * 24u, count_id(MD_CAN_HALL_READING_FRAME_ID));
     /* the sensor sees the motion: 250 steps of ~40 nm */
     n_cap = 0u;
-    send_nmt(MD_NMT_START, MD_NODE_HALL);   /* re-announce: calibration + a reading now */
+    send_nmt(MD_NMT_START, MD_NODE_HALL); /* re-announce: calibration + a reading now */
     TEST_ASSERT_DOUBLE_WITHIN(3.0, 1010.0, hall_depth_um(1u));
     TEST_ASSERT_DOUBLE_WITHIN(2.0, 1000.0, hall_depth_um(0u));
 }
@@ -237,7 +237,7 @@ static void test_act_cmd_moves_and_reports_with_seq(void)
 static void test_halt_is_acknowledged_without_time(void)
 {
     send_act(0u, MD_ACT_CMD_HALT, MD_ACT_DIR_ADVANCE, 9u, 0u, 0u);
-    TEST_ASSERT_EQUAL_size_t(2u, n_cap);   /* SIM_CLOCK + ACT_STATUS, no closing clock */
+    TEST_ASSERT_EQUAL_size_t(2u, n_cap); /* SIM_CLOCK + ACT_STATUS, no closing clock */
     const struct md_can_act_status_t s = act_status_of(&cap[1]);
     TEST_ASSERT_EQUAL_UINT8(9u, s.cmd_seq);
     TEST_ASSERT_EQUAL_UINT8(MD_ACT_IDLE, s.state);
@@ -256,7 +256,7 @@ static void check_stream(uint8_t e, uint16_t interval, uint32_t n)
             TEST_ASSERT_TRUE((cap[i].flags & MD_FRAME_FLAG_FD) != 0u);
             TEST_ASSERT_EQUAL_INT(0, md_can_rec_data_unpack(&d, cap[i].data, cap[i].len));
             TEST_ASSERT_EQUAL_UINT8(e, d.electrode);
-            TEST_ASSERT_EQUAL_UINT16(frames, d.seq);   /* in order, from 0 */
+            TEST_ASSERT_EQUAL_UINT16(frames, d.seq); /* in order, from 0 */
             const uint32_t expect = (n - total < 30u) ? n - total : 30u;
             TEST_ASSERT_EQUAL_UINT8(expect, d.sample_count);
             total += d.sample_count;
@@ -335,19 +335,19 @@ static void test_same_seed_same_frames_other_seed_other_frames(void)
 static void test_malformed_frames_are_counted_and_ignored(void)
 {
     const uint8_t short_cmd[7] = {0, 1, 0, 1, 10, 0, 100};
-    put(MD_CAN_ACT_CMD_FRAME_ID, short_cmd, 7u);              /* length */
-    send_act(3u, MD_ACT_CMD_STEP, MD_ACT_DIR_ADVANCE, 1u, 10u, 100u);   /* electrode 3 of 3 */
-    send_act(0u, 2u, MD_ACT_DIR_ADVANCE, 1u, 10u, 100u);      /* command */
-    send_act(0u, MD_ACT_CMD_STEP, 2u, 1u, 10u, 100u);         /* direction */
-    send_act(0u, MD_ACT_CMD_STEP, MD_ACT_DIR_ADVANCE, 1u, 0u, 100u);   /* no steps */
-    send_act(0u, MD_ACT_CMD_STEP, MD_ACT_DIR_ADVANCE, 1u, 10u, 0u);    /* no rate */
-    send_rec(0u, 1u, 0u);                                      /* no samples */
-    send_rec(0u, 1u, SIMNODE_FE_MAX_SAMPLES + 1u);              /* Seq would wrap */
-    send_rec(5u, 1u, 100u);                                    /* electrode */
-    send_nmt(77u, 0u);                                         /* NMT command */
-    send_nmt(MD_NMT_STOP, 200u);                               /* NMT target */
+    put(MD_CAN_ACT_CMD_FRAME_ID, short_cmd, 7u);                      /* length */
+    send_act(3u, MD_ACT_CMD_STEP, MD_ACT_DIR_ADVANCE, 1u, 10u, 100u); /* electrode 3 of 3 */
+    send_act(0u, 2u, MD_ACT_DIR_ADVANCE, 1u, 10u, 100u);              /* command */
+    send_act(0u, MD_ACT_CMD_STEP, 2u, 1u, 10u, 100u);                 /* direction */
+    send_act(0u, MD_ACT_CMD_STEP, MD_ACT_DIR_ADVANCE, 1u, 0u, 100u);  /* no steps */
+    send_act(0u, MD_ACT_CMD_STEP, MD_ACT_DIR_ADVANCE, 1u, 10u, 0u);   /* no rate */
+    send_rec(0u, 1u, 0u);                                             /* no samples */
+    send_rec(0u, 1u, SIMNODE_FE_MAX_SAMPLES + 1u);                    /* Seq would wrap */
+    send_rec(5u, 1u, 100u);                                           /* electrode */
+    send_nmt(77u, 0u);                                                /* NMT command */
+    send_nmt(MD_NMT_STOP, 200u);                                      /* NMT target */
     const uint8_t bad_estop[1] = {5u};
-    put(MD_CAN_ESTOP_FRAME_ID, bad_estop, 1u);                 /* length: not an e-stop */
+    put(MD_CAN_ESTOP_FRAME_ID, bad_estop, 1u); /* length: not an e-stop */
     TEST_ASSERT_EQUAL_UINT64(12u, plant.stats.rx_malformed);
     TEST_ASSERT_EQUAL_UINT64(6u, plant.act.node.stats.rx_malformed);
     TEST_ASSERT_EQUAL_UINT64(3u, plant.fe.node.stats.rx_malformed);
@@ -417,8 +417,8 @@ static void test_estop_interrupts_motion_in_realtime(void)
 {
     make_plant(false, true, 7u);
     n_cap = 0u;
-    send_act(2u, MD_ACT_CMD_STEP, MD_ACT_DIR_ADVANCE, 1u, 1000u, 100u);   /* 10 s */
-    TEST_ASSERT_EQUAL_UINT64(0u, plant.now_us);   /* realtime: nothing runs ahead */
+    send_act(2u, MD_ACT_CMD_STEP, MD_ACT_DIR_ADVANCE, 1u, 1000u, 100u); /* 10 s */
+    TEST_ASSERT_EQUAL_UINT64(0u, plant.now_us);                         /* realtime: nothing runs ahead */
     TEST_ASSERT_TRUE(simnode_plant_advance(&plant, 1000000u));
     const struct md_can_act_status_t mid = act_status_of(last_id(MD_CAN_ACT_STATUS_FRAME_ID));
     TEST_ASSERT_EQUAL_UINT8(MD_ACT_MOVING, mid.state);
@@ -439,9 +439,9 @@ static void test_realtime_stream_follows_time(void)
 {
     make_plant(false, true, 7u);
     n_cap = 0u;
-    send_rec(0u, 9u, 3000u);   /* 100 ms at 30 kHz */
+    send_rec(0u, 9u, 3000u); /* 100 ms at 30 kHz */
     TEST_ASSERT_EQUAL_size_t(0u, count_id(MD_CAN_REC_DATA_FRAME_ID));
-    TEST_ASSERT_TRUE(simnode_plant_advance(&plant, 50000u));   /* half: frames 0..49 */
+    TEST_ASSERT_TRUE(simnode_plant_advance(&plant, 50000u)); /* half: frames 0..49 */
     TEST_ASSERT_EQUAL_size_t(50u, count_id(MD_CAN_REC_DATA_FRAME_ID));
     TEST_ASSERT_EQUAL_size_t(0u, count_id(MD_CAN_REC_END_FRAME_ID));
     TEST_ASSERT_TRUE(simnode_plant_advance(&plant, 100000u));
@@ -461,7 +461,7 @@ static void test_realtime_stream_follows_time(void)
     TEST_ASSERT_EQUAL_INT(0, md_can_rec_end_unpack(&end, last_id(MD_CAN_REC_END_FRAME_ID)->data, 8u));
     TEST_ASSERT_EQUAL_UINT16(10u, end.interval_id);
     TEST_ASSERT_EQUAL_UINT8(MD_REC_ABORTED, end.status);
-    TEST_ASSERT_EQUAL_UINT32(300u, end.total_samples);   /* 10 ms of it went out */
+    TEST_ASSERT_EQUAL_UINT32(300u, end.total_samples); /* 10 ms of it went out */
     TEST_ASSERT_FALSE(simnode_fe_busy(&plant.fe));
 }
 
@@ -494,33 +494,33 @@ static void test_nmt_targets_and_broadcast(void)
     TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_STOPPED, plant.fe.node.state);
     TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_OPERATIONAL, plant.act.node.state);
     n_cap = 0u;
-    send_rec(0u, 1u, 300u);                     /* stopped: ignored, counted */
+    send_rec(0u, 1u, 300u); /* stopped: ignored, counted */
     TEST_ASSERT_EQUAL_size_t(0u, n_cap);
     TEST_ASSERT_EQUAL_UINT64(1u, plant.fe.node.stats.rx_refused);
-    send_nmt(MD_NMT_START, MD_NODE_FE);         /* start re-announces FE_INFO */
+    send_nmt(MD_NMT_START, MD_NODE_FE); /* start re-announces FE_INFO */
     TEST_ASSERT_EQUAL_size_t(3u, count_id(MD_CAN_FE_INFO_FRAME_ID));
     n_cap = 0u;
-    send_nmt(MD_NMT_RESET_NODE, MD_NODE_HALL);  /* boot-up heartbeat, then announce */
+    send_nmt(MD_NMT_RESET_NODE, MD_NODE_HALL); /* boot-up heartbeat, then announce */
     TEST_ASSERT_EQUAL_HEX32(0x703u, cap[1].id);
     TEST_ASSERT_EQUAL_HEX8(MD_NODE_STATE_BOOT, cap[1].data[0]);
     TEST_ASSERT_EQUAL_HEX8(MD_PROTOCOL_VERSION, cap[1].data[1]);
     TEST_ASSERT_EQUAL_UINT32(1u, plant.hall.node.resets);
     TEST_ASSERT_EQUAL_size_t(36u, count_id(MD_CAN_HALL_CALIB_FRAME_ID));
-    send_nmt(MD_NMT_PREOP, 0u);                 /* broadcast */
+    send_nmt(MD_NMT_PREOP, 0u); /* broadcast */
     TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_PREOP, plant.act.node.state);
     TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_PREOP, plant.hall.node.state);
     TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_PREOP, plant.fe.node.state);
     n_cap = 0u;
     send_act(0u, MD_ACT_CMD_STEP, MD_ACT_DIR_ADVANCE, 1u, 10u, 100u);
     TEST_ASSERT_EQUAL_size_t(0u, n_cap);
-    send_nmt(MD_NMT_START, 9u);                 /* someone else's node */
+    send_nmt(MD_NMT_START, 9u); /* someone else's node */
     TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_PREOP, plant.act.node.state);
 }
 
 static void test_no_autostart_waits_for_nmt_start(void)
 {
     make_plant(true, false, 7u);
-    TEST_ASSERT_EQUAL_size_t(0u, n_cap);   /* nothing but heartbeats (sent by the process) */
+    TEST_ASSERT_EQUAL_size_t(0u, n_cap); /* nothing but heartbeats (sent by the process) */
     TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_PREOP, plant.fe.node.state);
     send_rec(0u, 1u, 30u);
     TEST_ASSERT_EQUAL_size_t(0u, n_cap);
@@ -535,7 +535,7 @@ static void test_hall_seq_wraps_and_time_is_simulated(void)
 {
     /* 3 s of recording at 100 Hz readings: 300 per electrode, Seq mod 256 */
     send_rec(0u, 1u, 90000u);
-    uint32_t k = 1u;   /* the start-up reading was Seq 0 */
+    uint32_t k = 1u; /* the start-up reading was Seq 0 */
     for (size_t i = 0; i < n_cap; i++) {
         if (cap[i].id != MD_CAN_HALL_READING_FRAME_ID) {
             continue;
@@ -571,7 +571,7 @@ static void test_silent_node_sends_nothing_in_its_window(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, simnode_plant_init(&plant, &cfg, world, sink));
     simnode_plant_start(&plant);
     n_cap = 0u;
-    send_rec(0u, 1u, 90000u);   /* 3 s of simulated time */
+    send_rec(0u, 1u, 90000u); /* 3 s of simulated time */
     uint32_t before = 0u, inside = 0u, after = 0u;
     for (size_t i = 0; i < n_cap; i++) {
         if (cap[i].id != MD_CAN_HALL_READING_FRAME_ID) {

@@ -51,7 +51,10 @@ static void make_plant(bool lockstep, uint64_t seed)
     n_cap = 0u;
 }
 
-void setUp(void) { make_plant(true, 11u); }
+void setUp(void)
+{
+    make_plant(true, 11u);
+}
 
 void tearDown(void)
 {
@@ -136,7 +139,7 @@ static uint64_t truth_interval_start(unsigned k, uint64_t *t_us)
 
 static void test_step_moves_time_and_is_answered_with_clocks(void)
 {
-    send_step(2500000u, 7u);   /* 2.5 s */
+    send_step(2500000u, 7u); /* 2.5 s */
     TEST_ASSERT_TRUE(n_cap >= 2u);
     TEST_ASSERT_EQUAL_UINT64(0u, clock_of(&cap[0]));
     TEST_ASSERT_EQUAL_UINT64(2500000u, clock_of(&cap[n_cap - 1u]));
@@ -183,18 +186,18 @@ static void test_recording_after_a_step_starts_at_its_end(void)
     TEST_ASSERT_EQUAL_UINT64(1000000u, clock_of(&cap[0]));
     TEST_ASSERT_EQUAL_UINT64(1010000u, clock_of(&cap[n_cap - 1u]));
     uint64_t t_us = 0u;
-    TEST_ASSERT_EQUAL_UINT64(30000u, truth_interval_start(0u, &t_us));   /* 1 s at 30 kHz */
+    TEST_ASSERT_EQUAL_UINT64(30000u, truth_interval_start(0u, &t_us)); /* 1 s at 30 kHz */
     TEST_ASSERT_EQUAL_UINT64(1000000u, t_us);
 }
 
 static void test_malformed_refused_and_realtime_steps_get_no_answer(void)
 {
     const uint8_t d[8] = {0x10, 0x27, 0, 0, 5, 0, 0, 0};
-    put(MD_CAN_SIM_STEP_FRAME_ID, d, 7u, 0u);                  /* wrong length */
-    put(MD_CAN_SIM_STEP_FRAME_ID, d, 8u, MD_FRAME_FLAG_FD);    /* FD flag */
+    put(MD_CAN_SIM_STEP_FRAME_ID, d, 7u, 0u);               /* wrong length */
+    put(MD_CAN_SIM_STEP_FRAME_ID, d, 8u, MD_FRAME_FLAG_FD); /* FD flag */
     TEST_ASSERT_EQUAL_size_t(2u, plant.fe.node.stats.rx_malformed);
     TEST_ASSERT_EQUAL_UINT64(2u, plant.stats.rx_malformed);
-    TEST_ASSERT_EQUAL_size_t(2u, count_id(MD_CAN_EMCY_FE_FRAME_ID));   /* 1st and 2nd */
+    TEST_ASSERT_EQUAL_size_t(2u, count_id(MD_CAN_EMCY_FE_FRAME_ID)); /* 1st and 2nd */
     /* each EMCY is a batch of its own, opened by the (unmoved) clock */
     TEST_ASSERT_EQUAL_size_t(4u, n_cap);
     TEST_ASSERT_EQUAL_size_t(2u, count_id(MD_CAN_SIM_CLOCK_FRAME_ID));
@@ -248,7 +251,7 @@ static void test_one_long_step_equals_several_short_ones(void)
     }
     TEST_ASSERT_EQUAL_size_t(na, ia);
     TEST_ASSERT_EQUAL_size_t(n_cap, ib);
-    TEST_ASSERT_TRUE(compared > 100u + 900u);   /* 100 REC_DATA + 3 x 300 readings */
+    TEST_ASSERT_TRUE(compared > 100u + 900u); /* 100 REC_DATA + 3 x 300 readings */
 }
 
 /* Back-to-back recordings on an electrode whose clock is off the sample grid:
@@ -256,15 +259,15 @@ static void test_one_long_step_equals_several_short_ones(void)
  * start_sample aligns detections with the truth's spikes. */
 static void test_interval_record_gives_the_exact_start_sample(void)
 {
-    send_step(33u, 1u);            /* 0.99 samples at 30 kHz */
-    send_rec(2u, 1u, 1u);          /* sample 0; ends at 33 + 34 us */
-    send_rec(2u, 2u, 1u);          /* starts at 67 us, ends at 101 us */
+    send_step(33u, 1u);   /* 0.99 samples at 30 kHz */
+    send_rec(2u, 1u, 1u); /* sample 0; ends at 33 + 34 us */
+    send_rec(2u, 2u, 1u); /* starts at 67 us, ends at 101 us */
     uint64_t t0 = 0u, t1 = 0u;
     TEST_ASSERT_EQUAL_UINT64(0u, truth_interval_start(0u, &t0));
     TEST_ASSERT_EQUAL_UINT64(33u, t0);
     TEST_ASSERT_EQUAL_UINT64(1u, truth_interval_start(1u, &t1));
     TEST_ASSERT_EQUAL_UINT64(67u, t1);
-    TEST_ASSERT_EQUAL_UINT64(2u, t1 * 30000u / 1000000u);   /* what the time alone would say */
+    TEST_ASSERT_EQUAL_UINT64(2u, t1 * 30000u / 1000000u); /* what the time alone would say */
     /* once time passes unrecorded, the clock is back on the grid */
     send_step(1000u, 2u);
     send_rec(2u, 3u, 30u);

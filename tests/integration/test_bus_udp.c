@@ -19,9 +19,10 @@
 #include "md_bus_wire.h"
 #include "unity.h"
 
-#define ARRIVE_US 2000000   // generous upper bound; returns as soon as the frame is there
-#define ABSENT_US 50000     // loopback delivers in microseconds; 50 ms of silence means "not sent"
-#define PEER_US 20000000    // a peer process's next frame: bounds a hang only (a loaded machine can starve a process for seconds)
+#define ARRIVE_US 2000000  // generous upper bound; returns as soon as the frame is there
+#define ABSENT_US 50000    // loopback delivers in microseconds; 50 ms of silence means "not sent"
+#define PEER_US \
+    20000000  // a peer process's next frame: bounds a hang only (a loaded machine can starve a process for seconds)
 #define BUS_TEST_PATTERN 29u
 #include "bus_test_frames.h"
 

@@ -62,7 +62,10 @@ void setUp(void)
     TEST_ASSERT_EQUAL_INT(0, lb_init(g_st, LB_TIME_SIM, capture, &g_cap));
 }
 
-void tearDown(void) { free(g_st); }
+void tearDown(void)
+{
+    free(g_st);
+}
 
 /// Index of the k-th captured message on channel, or -1.
 static int find(const char *channel, int k)
@@ -91,12 +94,12 @@ static md_frame_t frame_of(uint32_t id, const uint8_t *data, size_t len)
     return f;
 }
 
-#define FEED(kind, KIND, msg)                                                                            \
-    do {                                                                                                 \
-        uint8_t buf_[64] = {0};                                                                          \
-        TEST_ASSERT_EQUAL_INT(MD_CAN_##KIND##_LENGTH, md_can_##kind##_pack(buf_, (msg), sizeof buf_));   \
-        md_frame_t f_ = frame_of(MD_CAN_##KIND##_FRAME_ID, buf_, MD_CAN_##KIND##_LENGTH);                \
-        lb_feed_frame(g_st, &f_, 0);                                                                     \
+#define FEED(kind, KIND, msg)                                                                          \
+    do {                                                                                               \
+        uint8_t buf_[64] = {0};                                                                        \
+        TEST_ASSERT_EQUAL_INT(MD_CAN_##KIND##_LENGTH, md_can_##kind##_pack(buf_, (msg), sizeof buf_)); \
+        md_frame_t f_ = frame_of(MD_CAN_##KIND##_FRAME_ID, buf_, MD_CAN_##KIND##_LENGTH);              \
+        lb_feed_frame(g_st, &f_, 0);                                                                   \
     } while (0)
 
 static void feed_clock(uint64_t t_us)
@@ -107,9 +110,15 @@ static void feed_clock(uint64_t t_us)
 
 static void feed_track(uint8_t e, uint8_t index, uint16_t id, uint16_t cycle, float pc1, uint8_t missed)
 {
-    struct md_can_tlm_track_t t = {.electrode = e, .index = index, .track_id = id, .cycle = cycle,
-                                   .spike_count = (uint16_t)(10u + index), .mean_pc1 = pc1, .mean_pc2 = -pc1,
-                                   .snr = 5.5f, .missed = missed};
+    struct md_can_tlm_track_t t = {.electrode = e,
+                                   .index = index,
+                                   .track_id = id,
+                                   .cycle = cycle,
+                                   .spike_count = (uint16_t)(10u + index),
+                                   .mean_pc1 = pc1,
+                                   .mean_pc2 = -pc1,
+                                   .snr = 5.5f,
+                                   .missed = missed};
     FEED(tlm_track, TLM_TRACK, &t);
 }
 
@@ -125,16 +134,29 @@ static void feed_wave(uint8_t e, uint16_t id, uint8_t part, int16_t base)
 
 static void feed_hyp(uint8_t e, uint8_t rank, uint16_t cycle, float log_prob)
 {
-    struct md_can_tlm_hyp_t h = {.electrode = e, .rank = rank, .cycle = cycle, .hyp_id = 1000u + rank,
-                                 .log_prob = log_prob, .num_tracks = 2, .model_g = 3};
+    struct md_can_tlm_hyp_t h = {.electrode = e,
+                                 .rank = rank,
+                                 .cycle = cycle,
+                                 .hyp_id = 1000u + rank,
+                                 .log_prob = log_prob,
+                                 .num_tracks = 2,
+                                 .model_g = 3};
     FEED(tlm_hyp, TLM_HYP, &h);
 }
 
 static void feed_status(uint8_t e, uint16_t cycle, uint8_t tracks, uint8_t hyps, uint16_t spikes)
 {
-    struct md_can_tlm_status_t s = {.electrode = e, .sfsm_state = 3, .cycle = cycle, .depth_um = 1234.5f,
-                                    .target_depth_um = 1240.0f, .snr = 7.25f, .iqm = 0.8f, .dominant_track = 7,
-                                    .num_tracks = tracks, .num_hypotheses = hyps, .flags = 0x5u,
+    struct md_can_tlm_status_t s = {.electrode = e,
+                                    .sfsm_state = 3,
+                                    .cycle = cycle,
+                                    .depth_um = 1234.5f,
+                                    .target_depth_um = 1240.0f,
+                                    .snr = 7.25f,
+                                    .iqm = 0.8f,
+                                    .dominant_track = 7,
+                                    .num_tracks = tracks,
+                                    .num_hypotheses = hyps,
+                                    .flags = 0x5u,
                                     .num_spikes = spikes};
     FEED(tlm_status, TLM_STATUS, &s);
 }
@@ -295,8 +317,12 @@ static void test_flush_publishes_open_groups(void)
 
 static void test_cycle_record_feeds_spike_times(void)
 {
-    struct md_can_tlm_cycle_t c = {.electrode = 0, .phase = 1, .cycle = 4, .interval_id = 4,
-                                   .sample_rate_hz = 30000, .num_samples = 300000,
+    struct md_can_tlm_cycle_t c = {.electrode = 0,
+                                   .phase = 1,
+                                   .cycle = 4,
+                                   .interval_id = 4,
+                                   .sample_rate_hz = 30000,
+                                   .num_samples = 300000,
                                    .start_time_us = 48000000u};
     FEED(tlm_cycle, TLM_CYCLE, &c);
     TEST_ASSERT_EQUAL_INT(1, count(LB_CH_CYCLE));
@@ -467,8 +493,12 @@ static void test_hall_batches_frame_time(void)
 static void test_actuator_status(void)
 {
     feed_clock(777u);
-    struct md_can_act_status_t a = {.electrode = 2, .state = MD_ACT_STALLED, .cmd_seq = 200, .end_stops = 2,
-                                    .steps_done = 40000, .steps_remaining = 65535};
+    struct md_can_act_status_t a = {.electrode = 2,
+                                    .state = MD_ACT_STALLED,
+                                    .cmd_seq = 200,
+                                    .end_stops = 2,
+                                    .steps_done = 40000,
+                                    .steps_remaining = 65535};
     FEED(act_status, ACT_STATUS, &a);
     const int i = find(LB_CH_ACTUATOR, 0);
     microdrive_actuator_t m;
@@ -560,7 +590,8 @@ static void test_truth_lines(void)
 
     microdrive_truth_session_t s;
     int i = find(LB_CH_TRUTH_SESSION, 0);
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_truth_session_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &s));
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i],
+                          microdrive_truth_session_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &s));
     TEST_ASSERT_EQUAL_INT64(3, s.seed);
     TEST_ASSERT_EQUAL_INT(2, s.num_electrodes);
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 7.5f, s.bg_rms_uv[1]);

@@ -42,7 +42,7 @@
 #define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
 #define SYST_CSR_ENABLE_TICKINT_CPUCLK 0x7u
 #define RELOAD 0x00FFFFFFu
-#define CPU_HZ 25000000u                 /* mps2-an500 SYSCLK, SysTick's CPU clock */
+#define CPU_HZ 25000000u                   /* mps2-an500 SYSCLK, SysTick's CPU clock */
 #define NS_PER_TICK (1000000000u / CPU_HZ) /* = instructions per tick under -icount shift=0 */
 #define CAL_ITERS 5000000u
 
@@ -232,8 +232,7 @@ static int replay_interval(int32_t samples, const uint8_t *rec, uint32_t k)
         return 1;
     }
     md_sh_write0(" status ");
-    md_sh_write0((failed < (unsigned)BENCH_RP_COUNT) ? bench_replay_stage_name((bench_replay_stage_t)failed)
-                                                     : "begin");
+    md_sh_write0((failed < (unsigned)BENCH_RP_COUNT) ? bench_replay_stage_name((bench_replay_stage_t)failed) : "begin");
     write_status(":", st);
     md_sh_write0("\n");
     return 0;

@@ -25,10 +25,10 @@ static void test_fpu_is_enabled_and_double_precision(void)
     /* CP10/CP11 full access, set by Reset_Handler. */
     TEST_ASSERT_EQUAL_HEX32(0x00F00000u, REG32(CPACR) & 0x00F00000u);
     const uint32_t mvfr0 = REG32(MVFR0);
-    TEST_ASSERT_EQUAL_UINT32(1u, mvfr0 & 0xFu);          /* 16 x 64-bit registers (D16) */
-    TEST_ASSERT_EQUAL_UINT32(2u, (mvfr0 >> 4) & 0xFu);   /* single precision */
-    TEST_ASSERT_EQUAL_UINT32(2u, (mvfr0 >> 8) & 0xFu);   /* double precision */
-    TEST_ASSERT_EQUAL_UINT32(1u, (mvfr0 >> 20) & 0xFu);  /* hardware square root */
+    TEST_ASSERT_EQUAL_UINT32(1u, mvfr0 & 0xFu);         /* 16 x 64-bit registers (D16) */
+    TEST_ASSERT_EQUAL_UINT32(2u, (mvfr0 >> 4) & 0xFu);  /* single precision */
+    TEST_ASSERT_EQUAL_UINT32(2u, (mvfr0 >> 8) & 0xFu);  /* double precision */
+    TEST_ASSERT_EQUAL_UINT32(1u, (mvfr0 >> 20) & 0xFu); /* hardware square root */
 }
 
 static void test_double_arithmetic_is_ieee_double(void)

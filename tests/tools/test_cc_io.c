@@ -50,7 +50,8 @@ static void test_exporter_format(void)
 static void test_crlf_and_limits(void)
 {
     TEST_ASSERT_EQUAL_INT(MD_OK, read_csv("sample_index,channel,neuron_id\r\n\r\n18446744073709551615,4294967295,"
-                                          "2147483647\r\n", 4294967295u));
+                                          "2147483647\r\n",
+                                          4294967295u));
     TEST_ASSERT_EQUAL_size_t(1u, g_t.n);
     TEST_ASSERT_EQUAL_UINT64(UINT64_MAX, g_t.sample[0]);
 }
@@ -60,9 +61,17 @@ static void test_crlf_and_limits(void)
 static void test_not_records_refused(void)
 {
     static const char *const bad[] = {
-        "-1,0,3\n",       "5,-1,3\n",           "5,0,3abc\n",        " 5,0,3\n",
-        "+5,0,3\n",       "5,0,2147483648\n",   "5,4294967296,1\n",  "18446744073709551616,0,1\n",
-        "5,0\n",          "1,0,1\nsample_index,channel,neuron_id\n", "5,0,3,\n",
+        "-1,0,3\n",
+        "5,-1,3\n",
+        "5,0,3abc\n",
+        " 5,0,3\n",
+        "+5,0,3\n",
+        "5,0,2147483648\n",
+        "5,4294967296,1\n",
+        "18446744073709551616,0,1\n",
+        "5,0\n",
+        "1,0,1\nsample_index,channel,neuron_id\n",
+        "5,0,3,\n",
     };
     for (size_t k = 0u; k < sizeof bad / sizeof bad[0]; ++k) {
         TEST_ASSERT_EQUAL_INT_MESSAGE(MD_E_FRAME, read_csv(bad[k], 0u), bad[k]);

@@ -109,11 +109,11 @@ static void check_error(md_status_t want, md_status_t got, const char *file, con
     TEST_ASSERT_TRUE_MESSAGE(strchr(g_err, '\n') == NULL, msg);
 }
 
-#define EXPECT_OPEN_ERROR(want, file, reason, json)                                                               \
-    do {                                                                                                          \
-        write_json(json);                                                                                         \
-        const md_status_t st_ = open_rec(10.0, 0u);                                                               \
-        check_error((want), st_, (file), (reason), __LINE__);                                                     \
+#define EXPECT_OPEN_ERROR(want, file, reason, json)           \
+    do {                                                      \
+        write_json(json);                                     \
+        const md_status_t st_ = open_rec(10.0, 0u);           \
+        check_error((want), st_, (file), (reason), __LINE__); \
     } while (0)
 
 /* ---------------------------------------------------------------- valid */
@@ -241,9 +241,8 @@ static void test_file_field_relative_and_absolute(void)
 /* float32 in µV (no gain_uV): counts of 1 µV, nearest with halves away from zero, clipped and non-finite counted */
 static void test_float32_microvolts_rounding_clipping(void)
 {
-    const float v[] = {0.0f,     0.49f,    0.5f,     -0.5f,     1.5f,      2.5f,     -2.5f,    12.34f,
-                       32767.4f, 32767.5f, 40000.0f, -32768.4f, -32768.5f, -1.0e9f,  NAN,      INFINITY,
-                       -INFINITY, 3.0f};
+    const float v[] = {0.0f,     0.49f,    0.5f,      -0.5f,     1.5f,    2.5f, -2.5f,    12.34f,    32767.4f,
+                       32767.5f, 40000.0f, -32768.4f, -32768.5f, -1.0e9f, NAN,  INFINITY, -INFINITY, 3.0f};
     const int16_t want[] = {0, 0, 1, -1, 2, 3, -3, 12, 32767, 32767, 32767, -32768, -32768, -32768, 0, 0, 0, 3};
     const size_t n = sizeof v / sizeof v[0];
     write_f32("recording.bin", v, n);
@@ -261,7 +260,7 @@ static void test_float32_microvolts_rounding_clipping(void)
         (void)snprintf(m, sizeof m, "sample %zu", i);
         TEST_ASSERT_EQUAL_INT_MESSAGE(want[i], x[i], m);
     }
-    TEST_ASSERT_EQUAL_UINT64(5u + 4u, conv.clipped);   /* 32767.5, 40000, -32768.5, -1e9 */
+    TEST_ASSERT_EQUAL_UINT64(5u + 4u, conv.clipped);    /* 32767.5, 40000, -32768.5, -1e9 */
     TEST_ASSERT_EQUAL_UINT64(7u + 3u, conv.non_finite); /* NaN, +inf, -inf */
 }
 
@@ -304,9 +303,10 @@ static void test_not_json(void)
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json",
                       "at byte offset 31 (line 1, column 32), in \"gain_uV\": Infinity is not a JSON number",
                       "{\"num_channels\": 1, \"gain_uV\": -Infinity}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "at byte offset 16 (line 2, column 4), in \"a\": unexpected end of file",
-                      "{\"a\": [1, 2,\n   ");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "at byte offset 8 (line 1, column 9): unexpected character ',', expected a key in double quotes",
+    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json",
+                      "at byte offset 16 (line 2, column 4), in \"a\": unexpected end of file", "{\"a\": [1, 2,\n   ");
+    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json",
+                      "at byte offset 8 (line 1, column 9): unexpected character ',', expected a key in double quotes",
                       "{\"a\": 1,, \"b\": 2}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "at byte offset 9 (line 2, column 1): text after the JSON value",
                       "{\"a\": 1}\n{\"b\": 2}");
@@ -327,16 +327,17 @@ static void test_not_json(void)
                       "{\"a\": 0030000}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "at byte offset 8 (line 1, column 9), in \"a\": control character",
                       "{\"a\": \"x\ty\"}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "at byte offset 5 (line 1, column 6), in \"a\": unexpected character '\\x01'",
-                      "{\"a\":\x01 1}");
+    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json",
+                      "at byte offset 5 (line 1, column 6), in \"a\": unexpected character '\\x01'", "{\"a\":\x01 1}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "at byte offset 8 (line 1, column 9), in \"a\": invalid escape",
                       "{\"a\": \"x\\q\"}");
+    EXPECT_OPEN_ERROR(
+        MD_E_FRAME, "recording.json",
+        "at byte offset 27 (line 2, column 3), after \"sampling_frequency\": unexpected character '\\x22', "
+        "expected ',' or '}'",
+        "{\"sampling_frequency\": 1\n  \"num_channels\": 1}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json",
-                      "at byte offset 27 (line 2, column 3), after \"sampling_frequency\": unexpected character '\\x22', "
-                      "expected ',' or '}'",
-                      "{\"sampling_frequency\": 1\n  \"num_channels\": 1}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "at byte offset 4 (line 1, column 5): unexpected end of file in a string",
-                      "{\"ab");
+                      "at byte offset 4 (line 1, column 5): unexpected end of file in a string", "{\"ab");
     char missing[160];
     (void)snprintf(missing, sizeof missing, "%s/recording.json", g_dir);
     (void)remove(missing);
@@ -389,26 +390,30 @@ static void test_bad_channels_dtype_gain(void)
                       "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \">i2\"}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"gain_uV\": must be > 0, got 0",
                       "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"gain_uV\": 0}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"gain_uV\": must be > 0, got -0.195",
-                      "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"gain_uV\": -0.195}");
+    EXPECT_OPEN_ERROR(
+        MD_E_FRAME, "recording.json", "field \"gain_uV\": must be > 0, got -0.195",
+        "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"gain_uV\": -0.195}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"gain_uV\": not a number (a string)",
                       "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"gain_uV\": \"1\"}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"offset_uV\": not a number (true/false)",
-                      "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"offset_uV\": true}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"byte_order\": \"big\" is not supported (only \"little\")",
-                      "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"byte_order\": \"big\"}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json",
-                      "field \"layout\": \"planar\" is not supported (only \"interleaved\")",
-                      "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"layout\": \"planar\"}");
+    EXPECT_OPEN_ERROR(
+        MD_E_FRAME, "recording.json", "field \"offset_uV\": not a number (true/false)",
+        "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"offset_uV\": true}");
+    EXPECT_OPEN_ERROR(
+        MD_E_FRAME, "recording.json", "field \"byte_order\": \"big\" is not supported (only \"little\")",
+        "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"byte_order\": \"big\"}");
+    EXPECT_OPEN_ERROR(
+        MD_E_FRAME, "recording.json", "field \"layout\": \"planar\" is not supported (only \"interleaved\")",
+        "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"layout\": \"planar\"}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"seed\": -1 is not an integer",
                       "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"seed\": -1}");
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"scenario\": not a string (an array)",
                       "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"scenario\": []}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"dtype\": given 2 times",
-                      "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"dtype\": \"float32\"}");
+    EXPECT_OPEN_ERROR(
+        MD_E_FRAME, "recording.json", "field \"dtype\": given 2 times",
+        "{\"sampling_frequency\": 30000, \"num_channels\": 1, \"dtype\": \"int16\", \"dtype\": \"float32\"}");
     write_json("{\"sampling_frequency\": 30000, \"num_channels\": 2, \"dtype\": \"int16\"}");
-    check_error(MD_E_ARG, open_rec(0.01, 3u), "recording.json", "channel 3 requested, but the recording has 2 channel(s)",
-                __LINE__);
+    check_error(MD_E_ARG, open_rec(0.01, 3u), "recording.json",
+                "channel 3 requested, but the recording has 2 channel(s)", __LINE__);
 }
 
 /* ---------------------------------------------------------------- bad binary */
@@ -432,8 +437,9 @@ static void test_bad_binary(void)
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.bin",
                       "4002 bytes is not a whole number of 4-byte frames (1 channel(s) of float32)", f32);
     write_zeros("recording.bin", 4000u);
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"num_samples\": 2001, but ",
-                      "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"num_samples\": 2001}");
+    EXPECT_OPEN_ERROR(
+        MD_E_FRAME, "recording.json", "field \"num_samples\": 2001, but ",
+        "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"num_samples\": 2001}");
     TEST_ASSERT_NOT_NULL(strstr(g_err, "recording.bin holds 2000 samples per channel"));
     EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "field \"file\": empty",
                       "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"file\": \"\"}");
@@ -441,9 +447,11 @@ static void test_bad_binary(void)
                       "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"file\": 1}");
     EXPECT_OPEN_ERROR(MD_E_IO, ".", "not a regular file",
                       "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"file\": \".\"}");
-    EXPECT_OPEN_ERROR(MD_E_IO, "nothing.bin", "cannot open",
-                      "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"file\": \"nothing.bin\"}");
-    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "no interval of 10 s fits in the 2000 samples per channel of ", mono);
+    EXPECT_OPEN_ERROR(
+        MD_E_IO, "nothing.bin", "cannot open",
+        "{\"sampling_frequency\": 1000, \"num_channels\": 1, \"dtype\": \"int16\", \"file\": \"nothing.bin\"}");
+    EXPECT_OPEN_ERROR(MD_E_FRAME, "recording.json", "no interval of 10 s fits in the 2000 samples per channel of ",
+                      mono);
     /* the binary shrinks after the sidecar was read */
     TEST_ASSERT_EQUAL_INT(MD_OK, open_rec(1.0, 0u));
     write_zeros("recording.bin", 3000u);

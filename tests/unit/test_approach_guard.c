@@ -24,7 +24,10 @@ void tearDown(void) {}
 
 /* The amplitude law A(d) = a0 / (1 + d^2 / d0^2), in noise RMS units, plus
  * the noise floor of a peak-to-peak measure. */
-static double law(double a0, double r_um, double x_um) { return 3.0 + a0 / (1.0 + (r_um * r_um + x_um * x_um) / 900.0); }
+static double law(double a0, double r_um, double x_um)
+{
+    return 3.0 + a0 / (1.0 + (r_um * r_um + x_um * x_um) / 900.0);
+}
 
 /* One interval with the robust amplitude only. */
 static ag_output_t step1(double amp, double depth, double want)

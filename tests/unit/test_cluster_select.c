@@ -19,8 +19,7 @@ static const double noise_cov[4] = {0.25, 0.0, 0.0, 0.25};
 
 /* n points from G isotropic Gaussians (sd) at the given centres, weights equal,
  * plus n_out uniform outliers in [-12, 12]^2. */
-static size_t make_mixture(uint64_t seed, const double (*centre)[2], size_t g, size_t n,
-                           double sd, size_t n_out)
+static size_t make_mixture(uint64_t seed, const double (*centre)[2], size_t g, size_t n, double sd, size_t n_out)
 {
     md_rng_t rng;
     md_rng_seed(&rng, seed);
@@ -220,8 +219,8 @@ static void assert_no_nan(const cluster_result_t *r)
 {
     for (size_t g = 0u; g < EM_G_MAX; ++g) {
         const cluster_model_t *m = &r->model[g];
-        TEST_ASSERT_TRUE(isfinite(m->log_evidence) && isfinite(m->post_prob) &&
-                         isfinite(m->fit.log_lik) && isfinite(m->fit.params.lambda));
+        TEST_ASSERT_TRUE(isfinite(m->log_evidence) && isfinite(m->post_prob) && isfinite(m->fit.log_lik) &&
+                         isfinite(m->fit.params.lambda));
     }
 }
 
@@ -244,11 +243,11 @@ static void test_degenerate_inputs_return_reasons(void)
     run_degenerate(0u, EM_FAIL_TOO_FEW_POINTS, MD_E_DEGENERATE);
     pts[0] = 1.0;
     pts[1] = 2.0;
-    run_degenerate(1u, EM_FAIL_ZERO_VOLUME, MD_E_DEGENERATE);  /* one point: V = 0 */
+    run_degenerate(1u, EM_FAIL_ZERO_VOLUME, MD_E_DEGENERATE); /* one point: V = 0 */
     pts[2] = 3.0;
     pts[3] = 5.0;
     run_degenerate(2u, EM_FAIL_TOO_FEW_POINTS, MD_E_DEGENERATE); /* V > 0, but < d + 2 points */
-    for (size_t i = 0u; i < 50u; ++i) { /* all identical */
+    for (size_t i = 0u; i < 50u; ++i) {                          /* all identical */
         pts[2u * i] = 0.5;
         pts[2u * i + 1u] = -0.5;
     }

@@ -25,25 +25,25 @@ typedef struct {
     uint64_t sim_us;
     double pos_um;
     uint32_t rng;
-    int flat;                 /* next interval: a flat signal (numeric failure) */
-    int recording;            /* a REC_REQ is being answered */
+    int flat;      /* next interval: a flat signal (numeric failure) */
+    int recording; /* a REC_REQ is being answered */
     uint8_t hall_seq;
     /* observations */
     uint32_t steps_cmds, steps_while_recording, steps_unasked;
     uint32_t tlm_status, tlm_cycle0, tlm_cycle1, tlm_spikes_parts, spikes_listed, emcy_software;
-    uint32_t move_flags_pending;   /* TLM_STATUS with MD_TLM_F_MOVE not yet followed by motion */
+    uint32_t move_flags_pending; /* TLM_STATUS with MD_TLM_F_MOVE not yet followed by motion */
     double cycle_start_um, max_excursion_um, min_pos, max_pos;
     uint16_t last_cycle[MD_ELECTRODES];
     uint32_t last_status_spikes;
     uint16_t last_interval;
     uint64_t last_start_us;
-    uint64_t now_us;          /* platform time given to the controller with every frame */
+    uint64_t now_us; /* platform time given to the controller with every frame */
     /* work counter of the port (test_cycle_cost_from_the_work_counter) */
-    int work_port;            /* the port has work_now/work_section */
-    uint64_t work;            /* advances WORK_PER_CALL per work_now call */
+    int work_port; /* the port has work_now/work_section */
+    uint64_t work; /* advances WORK_PER_CALL per work_now call */
     int section_open;
-    uint32_t section_errors;  /* enter while open, or leave while closed */
-    uint32_t rec_frames;      /* REC_DATA frames of the current interval */
+    uint32_t section_errors; /* enter while open, or leave while closed */
+    uint32_t rec_frames;     /* REC_DATA frames of the current interval */
     uint32_t costs_checked;
 } plant_t;
 
@@ -93,7 +93,10 @@ static double noise(void)
     return s * 1.7; /* sd ~ 1 */
 }
 
-static void deliver(const md_frame_t *f) { md_controller_on_frame(md_controller_instance(), f, P.now_us); }
+static void deliver(const md_frame_t *f)
+{
+    md_controller_on_frame(md_controller_instance(), f, P.now_us);
+}
 
 static void frame_init(md_frame_t *f, uint32_t id, int len, int fd)
 {
@@ -323,10 +326,10 @@ static void boot_with(int work_port)
     md_controller_t *c = md_controller_instance();
     TEST_ASSERT_EQUAL_INT(MD_OK, md_controller_init(c, &port, 0u));
     md_node_t *n = md_controller_node(c);
-    TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x2000u, 1.0));       /* interval_s */
+    TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x2000u, 1.0));        /* interval_s */
     TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x2010u, WIN_MIN_UM)); /* depth window */
     TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x2011u, WIN_MAX_UM));
-    TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x1F80u, 1.0)); /* auto start */
+    TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x1F80u, 1.0));     /* auto start */
     TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x1016u, 60000.0)); /* no timeouts in a test */
     heartbeat(MD_CAN_HEARTBEAT_ACT_FRAME_ID, 0u);
     heartbeat(MD_CAN_HEARTBEAT_HALL_FRAME_ID, 0u);
@@ -348,7 +351,10 @@ static void boot_with(int work_port)
     pass_time(100000u);
 }
 
-static void boot(void) { boot_with(0); }
+static void boot(void)
+{
+    boot_with(0);
+}
 
 static void test_cycles_move_safely_with_telemetry(void)
 {
@@ -357,17 +363,17 @@ static void test_cycles_move_safely_with_telemetry(void)
     run(50u); /* rounds: recording, processing and the servo moves the SFSM asks for */
     const md_electrode_t *el = &c->cycle.el[0];
     TEST_ASSERT_GREATER_OR_EQUAL_UINT(4u, el->cycles);
-    TEST_ASSERT_EQUAL_UINT32(el->cycles, P.tlm_status);   /* one TLM_STATUS per cycle */
+    TEST_ASSERT_EQUAL_UINT32(el->cycles, P.tlm_status); /* one TLM_STATUS per cycle */
     TEST_ASSERT_EQUAL_UINT32(P.tlm_cycle0, P.tlm_cycle1 + (el->phase != MD_CYC_IDLE ? 1u : 0u));
     TEST_ASSERT_GREATER_OR_EQUAL_UINT(el->cycles, P.tlm_spikes_parts);
     TEST_ASSERT_EQUAL_UINT32(0u, el->skipped);
-    TEST_ASSERT_GREATER_THAN_UINT(0u, P.steps_cmds);        /* the SFSM searched */
-    TEST_ASSERT_EQUAL_UINT32(0u, P.steps_while_recording);  /* never moves while recording */
-    TEST_ASSERT_EQUAL_UINT32(0u, P.steps_unasked);          /* never unless the SFSM asked */
+    TEST_ASSERT_GREATER_THAN_UINT(0u, P.steps_cmds);                  /* the SFSM searched */
+    TEST_ASSERT_EQUAL_UINT32(0u, P.steps_while_recording);            /* never moves while recording */
+    TEST_ASSERT_EQUAL_UINT32(0u, P.steps_unasked);                    /* never unless the SFSM asked */
     TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(30.0 + 2.0, P.max_excursion_um); /* Δmax per cycle (+ servo tolerance) */
     TEST_ASSERT_GREATER_OR_EQUAL_DOUBLE(WIN_MIN_UM - 2.0, P.min_pos);
     TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(WIN_MAX_UM + 2.0, P.max_pos);
-    TEST_ASSERT_EQUAL_UINT32(0u, c->cycle.el[1].cycles);    /* no FE_INFO: never recorded */
+    TEST_ASSERT_EQUAL_UINT32(0u, c->cycle.el[1].cycles); /* no FE_INFO: never recorded */
     TEST_ASSERT_GREATER_THAN_UINT(0u, el->mhtc.interval);
 }
 

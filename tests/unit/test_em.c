@@ -106,8 +106,7 @@ static void test_fixed_point_is_stationary(void)
     TEST_ASSERT_TRUE((st == MD_OK) || (st == MD_E_NOCONVERGE));
     double lp = 0.0;
     double grad[EM_ETA_MAX];
-    TEST_ASSERT_EQUAL_INT(MD_OK, em_log_post_derivs(&s.data, &s.outlier, &s.prior, &fit.params,
-                                                    &lp, grad, NULL, &ews));
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_log_post_derivs(&s.data, &s.outlier, &s.prior, &fit.params, &lp, grad, NULL, &ews));
     TEST_ASSERT_DOUBLE_WITHIN(1e-9 * fabs(lp), fit.log_post, lp);
     for (size_t k = 0u; k < em_param_count(2u, 2u); ++k) {
         TEST_ASSERT_DOUBLE_WITHIN(1e-4, 0.0, grad[k]);

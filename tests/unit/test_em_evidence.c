@@ -80,8 +80,8 @@ static void make_fixture(size_t d, size_t g, uint64_t seed, fixture_t *f)
             theta[k++] = 3.0 * gauss();
         }
         const double free_d2[] = {0.6 + uniform01(), 0.4 * gauss()};
-        const double free_d3[] = {0.8 + 0.5 * uniform01(), 0.2 * gauss(), 0.2 * gauss(),
-                                  0.8 + 0.5 * uniform01(), 0.2 * gauss()};
+        const double free_d3[] = {0.8 + 0.5 * uniform01(), 0.2 * gauss(), 0.2 * gauss(), 0.8 + 0.5 * uniform01(),
+                                  0.2 * gauss()};
         for (size_t t = 0u; t < (d * (d + 1u)) / 2u - 1u; ++t) {
             theta[k++] = (d == 2u) ? free_d2[t] : free_d3[t];
         }
@@ -95,8 +95,7 @@ static double log_post_at(const fixture_t *f, const double *theta, double *grad)
     em_params_t p;
     double lp = 0.0;
     TEST_ASSERT_EQUAL_INT(MD_OK, em_theta_unpack(theta, f->params.d, f->params.g, &p));
-    TEST_ASSERT_EQUAL_INT(MD_OK, em_log_post_derivs(&f->data, &f->outlier, &f->prior, &p, &lp,
-                                                    grad, NULL, &ws));
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_log_post_derivs(&f->data, &f->outlier, &f->prior, &p, &lp, grad, NULL, &ws));
     return lp;
 }
 
@@ -111,8 +110,7 @@ static void check_derivatives(size_t d, size_t g, uint64_t seed)
     double grad[EM_ETA_MAX];
     double lp = 0.0;
     TEST_ASSERT_EQUAL_INT(MD_OK, em_theta_pack(&f.params, theta));
-    TEST_ASSERT_EQUAL_INT(MD_OK, em_log_post_derivs(&f.data, &f.outlier, &f.prior, &f.params, &lp,
-                                                    grad, hess, &ws));
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_log_post_derivs(&f.data, &f.outlier, &f.prior, &f.params, &lp, grad, hess, &ws));
     double max_rel_g = 0.0;
     double max_rel_h = 0.0;
     for (size_t k = 0u; k < eta; ++k) {
@@ -167,8 +165,7 @@ static void test_hessian_diagonal_matches_second_difference(void)
     double theta[EM_ETA_MAX];
     double lp0 = 0.0;
     TEST_ASSERT_EQUAL_INT(MD_OK, em_theta_pack(&f.params, theta));
-    TEST_ASSERT_EQUAL_INT(MD_OK, em_log_post_derivs(&f.data, &f.outlier, &f.prior, &f.params, &lp0,
-                                                    NULL, hess, &ws));
+    TEST_ASSERT_EQUAL_INT(MD_OK, em_log_post_derivs(&f.data, &f.outlier, &f.prior, &f.params, &lp0, NULL, hess, &ws));
     for (size_t k = 0u; k < eta; ++k) {
         const double h = 1e-3 * fmax(0.1, fabs(theta[k]));
         double f_pm[4];
@@ -180,8 +177,7 @@ static void test_hessian_diagonal_matches_second_difference(void)
             f_pm[s] = log_post_at(&f, t, NULL);
         }
         /* fourth-order stencil */
-        const double d2 = (-f_pm[0] + 16.0 * f_pm[1] - 30.0 * lp0 + 16.0 * f_pm[2] - f_pm[3]) /
-                          (12.0 * h * h);
+        const double d2 = (-f_pm[0] + 16.0 * f_pm[1] - 30.0 * lp0 + 16.0 * f_pm[2] - f_pm[3]) / (12.0 * h * h);
         TEST_ASSERT_DOUBLE_WITHIN(1e-5 * fabs(hess[k * eta + k]), hess[k * eta + k], d2);
     }
 }
@@ -210,8 +206,7 @@ static void test_theta_round_trip_and_constraint(void)
 
 static void test_bic_and_prior_constant(void)
 {
-    TEST_ASSERT_DOUBLE_WITHIN(1e-12, -100.0 - 0.5 * 11.0 * log(50.0),
-                              em_evidence_bic(-100.0, 2u, 2u, 50u));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, -100.0 - 0.5 * 11.0 * log(50.0), em_evidence_bic(-100.0, 2u, 2u, 50u));
     /* G = 3, d = 2: log 3! - 3·2·log 10 */
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, log(6.0) - 6.0 * log(10.0), em_param_prior_log_const(2u, 3u, 10.0));
 }

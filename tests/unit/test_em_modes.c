@@ -54,13 +54,11 @@ static double reference_ratio(double sep, double w, double sx)
 static void test_ratio_matches_the_mixture_density(void)
 {
     const double cases[][3] = {
-        {1.9, 0.5, 1.0}, /* equal halves closer than 2 sd: one mode */
-        {2.6, 0.5, 1.0}, /* just past 2 sd: a shallow dip (0.827) */
-        {3.0, 0.5, 1.0},
-        {2.5, 0.9, 1.0}, /* a small component on the flank: a shoulder, one mode */
-        {4.0, 0.9, 1.0},
-        {5.2, 0.5, 2.0}, /* wide along the axis joining the means: as 2.6 sd */
-        {8.0, 0.5, 1.0}, /* far apart: a deep dip */
+        {1.9, 0.5, 1.0},                  /* equal halves closer than 2 sd: one mode */
+        {2.6, 0.5, 1.0},                  /* just past 2 sd: a shallow dip (0.827) */
+        {3.0, 0.5, 1.0}, {2.5, 0.9, 1.0}, /* a small component on the flank: a shoulder, one mode */
+        {4.0, 0.9, 1.0}, {5.2, 0.5, 2.0}, /* wide along the axis joining the means: as 2.6 sd */
+        {8.0, 0.5, 1.0},                  /* far apart: a deep dip */
     };
     for (size_t i = 0u; i < sizeof cases / sizeof cases[0]; ++i) {
         const em_params_t p = pair(cases[i][0], cases[i][1], cases[i][2]);

@@ -17,8 +17,8 @@ void tearDown(void) {}
 #define D 2u
 
 static kf_work_t g_ws;
-static double g_lam[DW * DW];     /* dense reference Λ */
-static double g_x[DW];            /* dense reference x̂ */
+static double g_lam[DW * DW]; /* dense reference Λ */
+static double g_x[DW];        /* dense reference x̂ */
 static double g_low[DW * DW];
 
 /* d × d_w with orthonormal rows, like a PCA basis. */

@@ -283,8 +283,8 @@ static void test_jacobi_reports_noconverge_and_bad_input(void)
 
 static void test_matmul_and_all_finite(void)
 {
-    const double a[6] = {1, 2, 3, 4, 5, 6};       /* 2x3 */
-    const double b[6] = {7, 8, 9, 10, 11, 12};    /* 3x2 */
+    const double a[6] = {1, 2, 3, 4, 5, 6};    /* 2x3 */
+    const double b[6] = {7, 8, 9, 10, 11, 12}; /* 3x2 */
     double c[4];
     TEST_ASSERT_EQUAL_INT(MD_OK, linalg_matmul(a, b, c, 2, 3, 2));
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 58.0, c[0]);

@@ -141,8 +141,7 @@ static void test_corruption_is_dropped_counted_and_resynchronised(void)
     TEST_ASSERT_EQUAL_HEX8_ARRAY(f.data, out.data, 64u);
 
     /* joining mid-packet: the tail of one frame, then a whole one */
-    TEST_ASSERT_EQUAL_UINT(1u, feed(&d, &buf[n / 2u], n - n / 2u, &out, &err) +
-                                   feed(&d, buf, n, &out, NULL));
+    TEST_ASSERT_EQUAL_UINT(1u, feed(&d, &buf[n / 2u], n - n / 2u, &out, &err) + feed(&d, buf, n, &out, NULL));
     TEST_ASSERT_EQUAL_HEX32(0x400u, out.id);
 }
 

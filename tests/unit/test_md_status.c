@@ -7,8 +7,8 @@ void tearDown(void) {}
 
 static void test_names_are_distinct_and_known(void)
 {
-    const md_status_t codes[] = {MD_OK, MD_E_ARG, MD_E_CAPACITY, MD_E_NUMERIC, MD_E_DEGENERATE,
-                                 MD_E_NOCONVERGE, MD_E_STATE, MD_E_FRAME, MD_E_TIMEOUT, MD_E_IO};
+    const md_status_t codes[] = {MD_OK,           MD_E_ARG,   MD_E_CAPACITY, MD_E_NUMERIC, MD_E_DEGENERATE,
+                                 MD_E_NOCONVERGE, MD_E_STATE, MD_E_FRAME,    MD_E_TIMEOUT, MD_E_IO};
     const unsigned n = (unsigned)(sizeof codes / sizeof codes[0]);
     for (unsigned i = 0u; i < n; ++i) {
         TEST_ASSERT_TRUE(md_status_name(codes[i])[0] == 'M');

@@ -80,7 +80,7 @@ static void test_p3_table_values(void)
 typedef struct {
     size_t g, nt;
     double pd[4];
-    double fn[MD_G_MAX][4];         /* f_N(μ_g | μ̂_j, S_j) */
+    double fn[MD_G_MAX][4]; /* f_N(μ_g | μ̂_j, S_j) */
     double volume, ln, lf;
     double zeta[MD_G_MAX][5];
 } inst_t;
@@ -161,8 +161,7 @@ static void test_prop_4_2_product_of_a(void)
         inst_t in;
         make_instance(&rng, &in);
         double cost[LAP_MAX_ROWS * LAP_MAX_COLS];
-        TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&in.zeta[0][0], 5u, in.g, in.pd, in.nt, in.ln, in.lf,
-                                                      cost));
+        TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&in.zeta[0][0], 5u, in.g, in.pd, in.nt, in.ln, in.lf, cost));
         /* odometer over (nt + 2)^g labels: j < nt target, nt new, nt+1 false */
         const size_t base = in.nt + 2u;
         size_t combos = 1u;

@@ -11,7 +11,7 @@
 #include "unity.h"
 
 #define SENT_MAX 400u
-#define T0_US 5000000u  /* arbitrary non-zero power-on time */
+#define T0_US 5000000u /* arbitrary non-zero power-on time */
 #define MS 1000u
 
 static md_frame_t g_sent[SENT_MAX];
@@ -99,7 +99,10 @@ static md_frame_t frame_of(uint32_t id, const uint8_t *data, int len)
     return f;
 }
 
-static md_status_t rx(const md_frame_t *f) { return md_node_on_frame(&g_node, f, g_now); }
+static md_status_t rx(const md_frame_t *f)
+{
+    return md_node_on_frame(&g_node, f, g_now);
+}
 
 static md_status_t nmt(uint8_t cmd, uint8_t target)
 {
@@ -121,8 +124,7 @@ static md_status_t heartbeat_from(uint8_t node_id, uint8_t version)
 {
     const struct md_can_heartbeat_act_t m = {(uint8_t)MD_NODE_STATE_OPERATIONAL, version, 0u, 3u, 1u};
     uint8_t b[8];
-    const md_frame_t f =
-        frame_of(0x700u + node_id, b, md_can_heartbeat_act_pack(b, &m, sizeof b));
+    const md_frame_t f = frame_of(0x700u + node_id, b, md_can_heartbeat_act_pack(b, &m, sizeof b));
     return rx(&f);
 }
 
@@ -427,7 +429,8 @@ static void test_estop_latches_until_clear_even_through_reset(void)
     (void)nmt(MD_NMT_RESET_NODE, 0u);
     (void)md_node_poll(&g_node, g_now);
     TEST_ASSERT_TRUE(g_node.estop_latched);
-    TEST_ASSERT_EQUAL_UINT8(MD_HB_FLAG_ESTOP, decode_hb(last_of(MD_CAN_HEARTBEAT_CTRL_FRAME_ID)).flags & MD_HB_FLAG_ESTOP);
+    TEST_ASSERT_EQUAL_UINT8(MD_HB_FLAG_ESTOP,
+                            decode_hb(last_of(MD_CAN_HEARTBEAT_CTRL_FRAME_ID)).flags & MD_HB_FLAG_ESTOP);
     TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_PREOP, g_node.state);
     /* clear-e-stop for another node does nothing; for us it unlatches but does not start */
     (void)nmt(MD_NMT_CLEAR_ESTOP, MD_NODE_ACT);
@@ -501,7 +504,10 @@ static void test_counters_readable_as_parameters(void)
 
 static md_node_t g_before;
 
-static void snapshot(void) { g_before = g_node; }
+static void snapshot(void)
+{
+    g_before = g_node;
+}
 
 static void assert_unchanged_except_counters(void)
 {
@@ -697,9 +703,8 @@ static void test_protocol_emcy_is_inhibited(void)
  * (they are left out of the state check by design). */
 static void test_random_frames_never_crash(void)
 {
-    static const uint16_t IDS[] = {0x020u, 0x021u, 0x081u, 0x082u, 0x085u, 0x210u, 0x290u, 0x300u, 0x310u,
-                                   0x400u, 0x410u, 0x420u, 0x500u, 0x581u, 0x702u, 0x703u, 0x704u, 0x705u,
-                                   0x123u, 0x7FFu};
+    static const uint16_t IDS[] = {0x020u, 0x021u, 0x081u, 0x082u, 0x085u, 0x210u, 0x290u, 0x300u, 0x310u, 0x400u,
+                                   0x410u, 0x420u, 0x500u, 0x581u, 0x702u, 0x703u, 0x704u, 0x705u, 0x123u, 0x7FFu};
     boot();
     uint32_t x = 0x12345678u; /* xorshift32: deterministic */
     uint32_t rejected = 0u;
@@ -707,12 +712,16 @@ static void test_random_frames_never_crash(void)
     for (uint32_t i = 0u; i < 3000u; ++i) {
         md_frame_t f;
         memset(&f, 0, sizeof f);
-        x ^= x << 13; x ^= x >> 17; x ^= x << 5;
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
         f.id = ((x & 1u) != 0u) ? IDS[(x >> 1) % (sizeof IDS / sizeof IDS[0])] : ((x >> 8) & 0x7FFu);
         f.len = (uint8_t)((x >> 20) % 66u); /* includes invalid lengths */
         f.flags = (uint8_t)((x >> 28) & 0x7u);
         for (size_t k = 0u; k < MD_FRAME_MAX_DATA; ++k) {
-            x ^= x << 13; x ^= x >> 17; x ^= x << 5;
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
             f.data[k] = (uint8_t)x;
         }
         if (f.id == MD_CAN_ESTOP_FRAME_ID || f.id == MD_CAN_NMT_FRAME_ID || f.id == MD_CAN_PARAM_REQ_CTRL_FRAME_ID) {

@@ -8,10 +8,16 @@
 
 static md_params_t P;
 
-void setUp(void) { TEST_ASSERT_EQUAL_INT(MD_OK, md_params_init(&P)); }
+void setUp(void)
+{
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_params_init(&P));
+}
 void tearDown(void) {}
 
-static uint16_t index_of(md_param_id_t id) { return md_params_def((size_t)id)->index; }
+static uint16_t index_of(md_param_id_t id)
+{
+    return md_params_def((size_t)id)->index;
+}
 
 static void test_table_is_consistent(void)
 {
@@ -46,8 +52,8 @@ static void test_required_rows_exist_with_defaults(void)
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 10.0, md_params_get(&P, MD_P_INTERVAL_S));
     TEST_ASSERT_TRUE(md_params_get(&P, MD_P_DEPTH_MIN_UM) < md_params_get(&P, MD_P_DEPTH_MAX_UM));
     /* diagnostics are read-only rows */
-    const md_param_id_t diag[] = {MD_P_RX_FRAMES, MD_P_RX_MALFORMED, MD_P_RX_UNKNOWN_ID, MD_P_RX_BAD_LENGTH,
-                                  MD_P_RX_BAD_SEQUENCE, MD_P_EMCY_SENT, MD_P_TX_FAILURES};
+    const md_param_id_t diag[] = {MD_P_RX_FRAMES,       MD_P_RX_MALFORMED, MD_P_RX_UNKNOWN_ID, MD_P_RX_BAD_LENGTH,
+                                  MD_P_RX_BAD_SEQUENCE, MD_P_EMCY_SENT,    MD_P_TX_FAILURES};
     for (size_t i = 0u; i < sizeof diag / sizeof diag[0]; ++i) {
         TEST_ASSERT_TRUE((md_params_def((size_t)diag[i])->flags & MD_PARAM_F_READ_ONLY) != 0u);
     }

@@ -126,8 +126,7 @@ static void test_degenerate_and_bad_input(void)
     TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
     TEST_ASSERT_EQUAL_INT(MD_E_DEGENERATE, pca_fit(g_wave, 1u, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, 0u, &g_work, &g_basis));
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG,
-                          pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, MD_FEAT_DIM_MAX + 1u, &g_work, &g_basis));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, MD_FEAT_DIM_MAX + 1u, &g_work, &g_basis));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, pca_fit(g_wave, 10u, 10u, 23u, 2u, &g_work, &g_basis));
     g_wave[3] = NAN;
     TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, pca_fit(g_wave, 10u, MD_WAVE_LEN_MAX, DW, 2u, &g_work, &g_basis));

@@ -17,17 +17,17 @@ void tearDown(void) {}
 
 typedef struct {
     double pos_um;
-    double adv_um, ret_um;   /* true mean step lengths */
-    double cv;               /* step variation */
-    double noise_codes;      /* reading noise, uniform +- */
-    double lower_stop_um;    /* steps beyond stall at the stop */
-    int stuck;               /* steps do nothing, reported idle */
-    int frozen;              /* the sensor repeats frozen_code whatever the position */
+    double adv_um, ret_um; /* true mean step lengths */
+    double cv;             /* step variation */
+    double noise_codes;    /* reading noise, uniform +- */
+    double lower_stop_um;  /* steps beyond stall at the stop */
+    int stuck;             /* steps do nothing, reported idle */
+    int frozen;            /* the sensor repeats frozen_code whatever the position */
     uint16_t frozen_code;
-    double slip_back_um;     /* > 0: every step moves this far AGAINST the command (runaway) */
-    int fault;               /* every command answered with fault */
-    double hall_scale;       /* reported / true displacement (1: an honest sensor) */
-    uint32_t stop_cmd;       /* the command that ran into the lower stop (0: none) */
+    double slip_back_um; /* > 0: every step moves this far AGAINST the command (runaway) */
+    int fault;           /* every command answered with fault */
+    double hall_scale;   /* reported / true displacement (1: an honest sensor) */
+    uint32_t stop_cmd;   /* the command that ran into the lower stop (0: none) */
     uint32_t rng;
     double max_pos, min_pos; /* extremes reached */
     uint8_t seq;

@@ -385,7 +385,7 @@ static void test_isolated_reference_follows_a_louder_neuron(void)
     run(&in, 2u * cfg.wait_r);
     TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 12.0, sm.ref_snr); /* never lowered */
-    in.snr = 0.84 * 12.0; /* the drift the old reference (8) would have missed */
+    in.snr = 0.84 * 12.0;                               /* the drift the old reference (8) would have missed */
     run(&in, cfg.wait_r);
     TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
     /* another track, however loud, never raises the isolated neuron's reference */
@@ -472,7 +472,7 @@ static void test_other_dominant_is_adopted(void)
         sfsm_input_t other = base();
         other.dominant_track = TRACK_B;
         other.snr = (here == SFSM_NEURON_ISOLATED) ? 7.5 : 6.0; /* no drop below 0.85 × 8, no restore */
-        other.suggestion.m_star = 1u;                            /* no slope: Re-Estimate stays */
+        other.suggestion.m_star = 1u;                           /* no slope: Re-Estimate stays */
         sfsm_input_t mine = other;
         mine.dominant_track = TRACK_A;
         run(&other, cfg.wait_r - 1u);

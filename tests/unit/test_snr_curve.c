@@ -339,14 +339,10 @@ static double truth_poly(unsigned order, double u)
 {
     const double z = (u - 70.0) / 70.0;
     switch (order) {
-    case 1u:
-        return 5.0;
-    case 2u:
-        return 5.0 + 2.0 * z;
-    case 3u:
-        return 8.0 - 3.0 * z * z;
-    default:
-        return 6.0 + 0.5 * z - 2.0 * z * z + 2.0 * z * z * z;
+    case 1u: return 5.0;
+    case 2u: return 5.0 + 2.0 * z;
+    case 3u: return 8.0 - 3.0 * z * z;
+    default: return 6.0 + 0.5 * z - 2.0 * z * z + 2.0 * z * z * z;
     }
 }
 

@@ -41,8 +41,8 @@ static void test_curves_are_kept_per_track(void)
     fresh();
     for (size_t i = 0u; i < 6u; ++i) {
         const double u = 10.0 * (double)i;
-        observe(11u, u, 2.0 + 0.1 * u);  /* rising */
-        observe(42u, u, 8.0 - 0.1 * u);  /* falling */
+        observe(11u, u, 2.0 + 0.1 * u); /* rising */
+        observe(42u, u, 8.0 - 0.1 * u); /* falling */
     }
     sc_curve_t *a = sc_table_find(&table, 11u);
     sc_curve_t *b = sc_table_find(&table, 42u);

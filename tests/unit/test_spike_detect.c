@@ -82,8 +82,14 @@ static void score_trace(sd_method_t method, double snr, double rate_hz, uint64_t
     sc->fp += fp;
 }
 
-static double rate_of(const score_t *s) { return (double)s->hits / (double)s->truth; }
-static double fp_of(const score_t *s) { return (s->det > 0u) ? (double)s->fp / (double)s->det : 0.0; }
+static double rate_of(const score_t *s)
+{
+    return (double)s->hits / (double)s->truth;
+}
+static double fp_of(const score_t *s)
+{
+    return (s->det > 0u) ? (double)s->fp / (double)s->det : 0.0;
+}
 
 static void test_match_scoring_is_exact(void)
 {
@@ -104,7 +110,9 @@ static void test_threshold_exact_times_and_dead_time(void)
     for (size_t i = 0u; i < 4000u; ++i) {
         x[i] = (int16_t)(((i * 7u) % 3u == 0u) ? -1 : 1);
     }
-    x[500] = -8; x[501] = -20; x[502] = -9;
+    x[500] = -8;
+    x[501] = -20;
+    x[502] = -9;
     x[1500] = -30;
     x[1508] = -40; /* within the dead time of 1500: merged, deeper wins */
     x[3000] = 25;  /* positive: ignored with negative polarity */
@@ -156,7 +164,8 @@ static void test_capacity_state_and_arguments(void)
     sd_config_default(&cfg, SD_METHOD_WAVELET, FS_HZ);
     cfg.cost_ratio_l = 0.5;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sd_init(&g_det, &cfg, small, 64u));
-    sd_config_default(&cfg, SD_METHOD_WAVELET, 200000u); /* 1 ms at 200 kHz exceeds SD_BOX_MAX (and the warm-up SD_WARMUP_MAX) */
+    sd_config_default(&cfg, SD_METHOD_WAVELET,
+                      200000u); /* 1 ms at 200 kHz exceeds SD_BOX_MAX (and the warm-up SD_WARMUP_MAX) */
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sd_init(&g_det, &cfg, small, 64u));
 }
 

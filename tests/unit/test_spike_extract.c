@@ -135,8 +135,8 @@ static void test_chain_measures_the_synthetic_snr(void)
     memcpy(truth_ev.t, g_truth, n_truth * sizeof g_truth[0]);
     TEST_ASSERT_EQUAL_INT(MD_OK, sx_extract_spikes(x, n, &truth_ev, &cfg, &truth_sp));
     double snr_truth = 0.0;
-    TEST_ASSERT_EQUAL_INT(MD_OK, qm_snr(&truth_sp.wave[0][0], truth_sp.n, MD_WAVE_LEN_MAX, cfg.d_w, NULL, 0u, rms,
-                                        &snr_truth, NULL));
+    TEST_ASSERT_EQUAL_INT(
+        MD_OK, qm_snr(&truth_sp.wave[0][0], truth_sp.n, MD_WAVE_LEN_MAX, cfg.d_w, NULL, 0u, rms, &snr_truth, NULL));
     TEST_ASSERT_TRUE(snr_truth > 8.0);
     TEST_ASSERT_DOUBLE_WITHIN(0.03 * snr_truth, snr_truth, snr);
     TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(&g_sp.wave[0][0], g_sp.n, MD_WAVE_LEN_MAX, cfg.d_w, 2u, &g_work, &g_basis));
@@ -198,7 +198,7 @@ static void test_subsample_alignment_removes_the_sampling_phase(void)
     sx_config_default(&cfg, 30000u);
     memset(&g_ev, 0, sizeof g_ev);
     g_ev.n = 2u;
-    g_ev.t[0] = (uint32_t)cfg.pre_peak + 1u;     /* room for the window, not for the margin */
+    g_ev.t[0] = (uint32_t)cfg.pre_peak + 1u; /* room for the window, not for the margin */
     g_ev.t[1] = 1000u - (uint32_t)(cfg.d_w - cfg.pre_peak) - 1u;
     TEST_ASSERT_EQUAL_INT(MD_OK, sx_extract_spikes(g_x, 1000u, &g_ev, &cfg, &g_sp));
     TEST_ASSERT_EQUAL_size_t(0u, g_sp.n);

@@ -291,8 +291,8 @@ static void test_compact_outputs_feed_pca_and_metrics(void)
         TEST_ASSERT_EQUAL_INT(MD_OK, sx_snippet_to_double(z, i, g_nz.wave[i]));
     }
     TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(&g_sp.wave[0][0], w->n, MD_WAVE_LEN_MAX, w->d_w, 2u, &g_work, &g_basis[0]));
-    TEST_ASSERT_EQUAL_INT(MD_OK,
-                          pca_fit_i16(&w->wave[0][0], w->n, MD_WAVE_LEN_MAX, w->d_w, w->gain, 2u, &g_work, &g_basis[1]));
+    TEST_ASSERT_EQUAL_INT(
+        MD_OK, pca_fit_i16(&w->wave[0][0], w->n, MD_WAVE_LEN_MAX, w->d_w, w->gain, 2u, &g_work, &g_basis[1]));
     for (size_t j = 0u; j < 2u * w->d_w; ++j) {
         TEST_ASSERT_DOUBLE_WITHIN(1e-9, g_basis[0].b[j], g_basis[1].b[j]);
     }

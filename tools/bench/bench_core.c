@@ -17,11 +17,11 @@
 #include "signal/spike_synth.h"
 #include "tracking/mhtc.h"
 
-#define GAIN_UV 0.5           /* µV per ADC count */
-#define NOISE_COUNTS 20.0     /* noise RMS: 10 µV */
+#define GAIN_UV 0.5       /* µV per ADC count */
+#define NOISE_COUNTS 20.0 /* noise RMS: 10 µV */
 #define N_NEURONS 3u
 #define PEAKS_CAP 1024u
-#define SILENT_RMS 1e-3       /* a neuron-only trace: noise rounds to 0 counts */
+#define SILENT_RMS 1e-3 /* a neuron-only trace: noise rounds to 0 counts */
 #define DEPTH_STEP_UM 10.0
 
 /* SNR (peak-to-peak / noise RMS) and rate of the three neurons: 150+100+50 = 300 spikes in 10 s. */
@@ -32,8 +32,8 @@ static int16_t g_trace[BENCH_SAMPLES];
 static int16_t g_scratch[BENCH_SAMPLES];
 static uint32_t g_peaks[PEAKS_CAP];
 
-static ic_workspace_t g_ws;  /* the controller's md_workspace_t */
-static ic_out_t g_out;       /* what quality hands to control (md_process_out_t's fields) */
+static ic_workspace_t g_ws; /* the controller's md_workspace_t */
+static ic_out_t g_out;      /* what quality hands to control (md_process_out_t's fields) */
 
 static cluster_workspace_t g_cl_ws;
 static cluster_result_t g_cl_res;
@@ -175,21 +175,14 @@ static md_status_t stage_control(void)
 static md_status_t run_raw(bench_stage_t s)
 {
     switch (s) {
-    case BENCH_ST_DETECT:
-        return stage_detect();
-    case BENCH_ST_PCA:
-        return stage_pca();
-    case BENCH_ST_CLUSTER:
-        return stage_cluster();
-    case BENCH_ST_MHTC:
-        return stage_mhtc();
-    case BENCH_ST_QUALITY:
-        return stage_quality();
-    case BENCH_ST_CONTROL:
-        return stage_control();
+    case BENCH_ST_DETECT: return stage_detect();
+    case BENCH_ST_PCA: return stage_pca();
+    case BENCH_ST_CLUSTER: return stage_cluster();
+    case BENCH_ST_MHTC: return stage_mhtc();
+    case BENCH_ST_QUALITY: return stage_quality();
+    case BENCH_ST_CONTROL: return stage_control();
     case BENCH_ST_COUNT:
-    default:
-        return MD_E_ARG;
+    default: return MD_E_ARG;
     }
 }
 
@@ -296,7 +289,7 @@ size_t bench_static_bytes(void)
 /* Replay of recorded intervals                                        */
 /* ------------------------------------------------------------------ */
 
-#define RP_DEPTH_MIN_UM 0.0    /* md_params: depth_min_um, depth_max_um, min_rate_hz defaults */
+#define RP_DEPTH_MIN_UM 0.0 /* md_params: depth_min_um, depth_max_um, min_rate_hz defaults */
 #define RP_DEPTH_MAX_UM 5000.0
 #define RP_MIN_RATE_HZ 0.5
 
@@ -305,10 +298,10 @@ static const char *const REPLAY_NAMES[BENCH_RP_COUNT] = {"push", "end", "pca", "
 static ag_state_t g_guard;
 static uint32_t g_rp_fs_hz;
 static double g_rp_gain_uv;
-static size_t g_rp_n;              /* samples of the current interval */
-static double g_rp_depth_um;       /* its depth (NaN: unknown) */
-static double g_rp_tracked_um;     /* depth of the last tracked interval (NaN: none yet) */
-static int g_rp_next;              /* next stage to run; BENCH_RP_COUNT: none (done, failed or not begun) */
+static size_t g_rp_n;          /* samples of the current interval */
+static double g_rp_depth_um;   /* its depth (NaN: unknown) */
+static double g_rp_tracked_um; /* depth of the last tracked interval (NaN: none yet) */
+static int g_rp_next;          /* next stage to run; BENCH_RP_COUNT: none (done, failed or not begun) */
 static bench_replay_info_t g_rp_info;
 
 const char *bench_replay_stage_name(bench_replay_stage_t s)
@@ -391,8 +384,8 @@ static md_status_t rp_push(void)
 static md_status_t rp_track(void)
 {
     /* md_cycle.c process(): the travel since the last interval the tracker took */
-    const double move = (isfinite(g_rp_depth_um) && isfinite(g_rp_tracked_um))
-                            ? fabs(g_rp_depth_um - g_rp_tracked_um) : 0.0;
+    const double move = (isfinite(g_rp_depth_um) && isfinite(g_rp_tracked_um)) ? fabs(g_rp_depth_um - g_rp_tracked_um)
+                                                                               : 0.0;
     return ic_track(&g_ws, &g_mh, move);
 }
 
@@ -464,27 +457,14 @@ md_status_t bench_replay_run(bench_replay_stage_t s)
     }
     md_status_t st = MD_E_ARG;
     switch (s) {
-    case BENCH_RP_PUSH:
-        st = rp_push();
-        break;
-    case BENCH_RP_END:
-        st = ic_end(&g_ws);
-        break;
-    case BENCH_RP_PCA:
-        st = ic_features(&g_ws);
-        break;
-    case BENCH_RP_MHTC:
-        st = rp_track();
-        break;
-    case BENCH_RP_QUALITY:
-        st = rp_score();
-        break;
-    case BENCH_RP_CONTROL:
-        st = rp_control();
-        break;
+    case BENCH_RP_PUSH: st = rp_push(); break;
+    case BENCH_RP_END: st = ic_end(&g_ws); break;
+    case BENCH_RP_PCA: st = ic_features(&g_ws); break;
+    case BENCH_RP_MHTC: st = rp_track(); break;
+    case BENCH_RP_QUALITY: st = rp_score(); break;
+    case BENCH_RP_CONTROL: st = rp_control(); break;
     case BENCH_RP_COUNT:
-    default:
-        break;
+    default: break;
     }
     g_rp_next = (st == MD_OK) ? (int)s + 1 : (int)BENCH_RP_COUNT;
     return st;

@@ -22,23 +22,23 @@
 
 #include "common/md_status.h"
 
-#define BENCH_FS_HZ 30000u      ///< sample rate of the synthetic trace
-#define BENCH_SECONDS 10u       ///< interval length
+#define BENCH_FS_HZ 30000u  ///< sample rate of the synthetic trace
+#define BENCH_SECONDS 10u   ///< interval length
 #define BENCH_SAMPLES (BENCH_FS_HZ * BENCH_SECONDS)
-#define BENCH_CHUNK 30u         ///< samples per push (one CAN FD frame of samples)
-#define BENCH_WARMUP 4u         ///< whole cycles before the measured interval
-#define BENCH_D 2u              ///< PCA feature dimension (as the controller)
+#define BENCH_CHUNK 30u  ///< samples per push (one CAN FD frame of samples)
+#define BENCH_WARMUP 4u  ///< whole cycles before the measured interval
+#define BENCH_D 2u       ///< PCA feature dimension (as the controller)
 
 /// Stages, in cycle order. BENCH_ST_CLUSTER is clustering alone (G = 1..4,
 /// Laplace, no prior targets): it is part of MHTC's step, so the cycle total
 /// leaves it out.
 typedef enum {
     BENCH_ST_DETECT = 0,  ///< ic_begin + ic_push (30-sample chunks) + ic_end (streaming detection, extraction)
-    BENCH_ST_PCA,         ///< ic_features: pca_fit_i16, projections of spikes and noise, Ξ, noise RMS, robust amplitude
-    BENCH_ST_CLUSTER,     ///< cluster_fit_models, G = 1..4, Laplace (not in the cycle sum)
-    BENCH_ST_MHTC,        ///< ic_track: one mhtc_step on the int16 windows, L = 8, G_max = 4, Laplace
-    BENCH_ST_QUALITY,     ///< ic_score: SNR of every track + isolation distance of the dominant one
-    BENCH_ST_CONTROL,     ///< sc_table_observe + sc_curve_suggest + sfsm_step
+    BENCH_ST_PCA,      ///< ic_features: pca_fit_i16, projections of spikes and noise, Ξ, noise RMS, robust amplitude
+    BENCH_ST_CLUSTER,  ///< cluster_fit_models, G = 1..4, Laplace (not in the cycle sum)
+    BENCH_ST_MHTC,     ///< ic_track: one mhtc_step on the int16 windows, L = 8, G_max = 4, Laplace
+    BENCH_ST_QUALITY,  ///< ic_score: SNR of every track + isolation distance of the dominant one
+    BENCH_ST_CONTROL,  ///< sc_table_observe + sc_curve_suggest + sfsm_step
     BENCH_ST_COUNT
 } bench_stage_t;
 
@@ -60,17 +60,17 @@ md_status_t bench_run_stage(bench_stage_t s);
 
 /// Facts of the measured interval (valid after bench_setup()).
 typedef struct {
-    uint32_t true_spikes;  ///< spikes inserted by the synthesiser
-    uint32_t detected;     ///< windows extracted
-    uint32_t noise;        ///< noise snippets
-    uint32_t d_w;          ///< window length (samples)
-    uint32_t hyp;          ///< MHTC hypotheses after the measured step
-    uint32_t tracks;       ///< tracks of the leading hypothesis
-    uint32_t models;       ///< model hypotheses MHTC clustered in the measured step
-    uint32_t reused;       ///< of those, how many reused a similar parent's EM fit (no EM of their own)
-    uint32_t shared;       ///< of those, how many were copied from a parent with the same track records
-    uint32_t warm;         ///< EM fits started from another parent's fit (mhtc_config_t.warm_start)
-    uint32_t cluster_best_g; ///< best G of clustering alone
+    uint32_t true_spikes;     ///< spikes inserted by the synthesiser
+    uint32_t detected;        ///< windows extracted
+    uint32_t noise;           ///< noise snippets
+    uint32_t d_w;             ///< window length (samples)
+    uint32_t hyp;             ///< MHTC hypotheses after the measured step
+    uint32_t tracks;          ///< tracks of the leading hypothesis
+    uint32_t models;          ///< model hypotheses MHTC clustered in the measured step
+    uint32_t reused;          ///< of those, how many reused a similar parent's EM fit (no EM of their own)
+    uint32_t shared;          ///< of those, how many were copied from a parent with the same track records
+    uint32_t warm;            ///< EM fits started from another parent's fit (mhtc_config_t.warm_start)
+    uint32_t cluster_best_g;  ///< best G of clustering alone
 } bench_info_t;
 
 /// Copies the facts of the measured interval into *info.
@@ -140,12 +140,12 @@ md_status_t bench_replay_run(bench_replay_stage_t s);
 /// What the interval said, in TLM_STATUS's terms, to check that the replay
 /// computed what the controller did (valid after BENCH_RP_QUALITY).
 typedef struct {
-    uint32_t n_spikes;   ///< windows given to the tracker (TLM_STATUS NumSpikes)
-    uint32_t dominant;   ///< dominant track id, 0 if none (DominantTrack)
-    uint32_t n_tracks;   ///< tracks of the leading hypothesis (NumTracks)
-    uint32_t n_hyp;      ///< hypotheses (NumHypotheses)
-    uint32_t models;     ///< model hypotheses clustered in the step
-    float snr;           ///< SNR of the dominant track as TLM_STATUS carries it (Snr, float32)
+    uint32_t n_spikes;  ///< windows given to the tracker (TLM_STATUS NumSpikes)
+    uint32_t dominant;  ///< dominant track id, 0 if none (DominantTrack)
+    uint32_t n_tracks;  ///< tracks of the leading hypothesis (NumTracks)
+    uint32_t n_hyp;     ///< hypotheses (NumHypotheses)
+    uint32_t models;    ///< model hypotheses clustered in the step
+    float snr;          ///< SNR of the dominant track as TLM_STATUS carries it (Snr, float32)
 } bench_replay_info_t;
 
 /// Copies the current interval's facts into *info.

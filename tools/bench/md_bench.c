@@ -141,8 +141,8 @@ int main(int argc, char **argv)
     bench_info(&info);
     printf("interval fs_hz %u seconds %u true_spikes %u detected %u noise %u d_w %u hyp %u tracks %u models %u "
            "reused %u shared %u warm %u cluster_best_g %u static_bytes %zu\n",
-           BENCH_FS_HZ, BENCH_SECONDS, info.true_spikes, info.detected, info.noise, info.d_w, info.hyp, info.tracks, info.models,
-           info.reused, info.shared, info.warm, info.cluster_best_g, bench_static_bytes());
+           BENCH_FS_HZ, BENCH_SECONDS, info.true_spikes, info.detected, info.noise, info.d_w, info.hyp, info.tracks,
+           info.models, info.reused, info.shared, info.warm, info.cluster_best_g, bench_static_bytes());
     if (features != NULL && mb_write_features(features) != 0) {
         return 1;
     }

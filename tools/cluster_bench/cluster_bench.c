@@ -64,8 +64,8 @@ static double now_ms(void)
 
 static const char *only; /* configuration filter from argv[2], or NULL */
 
-static void bench(const char *name, cluster_method_t method, cluster_evidence_t ev,
-                  const cluster_input_t *in, unsigned runs)
+static void bench(const char *name, cluster_method_t method, cluster_evidence_t ev, const cluster_input_t *in,
+                  unsigned runs)
 {
     if ((only != NULL) && (strcmp(only, name) != 0)) {
         return;
@@ -84,9 +84,8 @@ static void bench(const char *name, cluster_method_t method, cluster_evidence_t 
     for (size_t g = 0u; g < EM_G_MAX; ++g) {
         iters += res.model[g].fit.iterations;
     }
-    printf("| %-14s | %8.3f | %8.3f | %s | %zu | %5.3f | %3u |\n", name, times_ms[runs / 2u],
-           times_ms[0], md_status_name(st), res.best_g,
-           (res.best_g > 0u) ? res.model[res.best_g - 1u].post_prob : 0.0, iters);
+    printf("| %-14s | %8.3f | %8.3f | %s | %zu | %5.3f | %3u |\n", name, times_ms[runs / 2u], times_ms[0],
+           md_status_name(st), res.best_g, (res.best_g > 0u) ? res.model[res.best_g - 1u].post_prob : 0.0, iters);
 }
 
 int main(int argc, char **argv)
@@ -111,8 +110,8 @@ int main(int argc, char **argv)
     bench("map-bic", CLUSTER_MAP, CLUSTER_EVIDENCE_BIC, &map_in, runs);
     bench("ml-bic", CLUSTER_ML, CLUSTER_EVIDENCE_BIC, &map_in, runs);
     printf("\nsizeof(cluster_workspace_t) = %zu bytes\n", sizeof(cluster_workspace_t));
-    printf("  z %zu, seed work %zu, hac %zu, evidence %zu, outlier+prior %zu\n", sizeof ws.z,
-           sizeof ws.seed_ws, sizeof ws.hac, sizeof ws.ev, sizeof ws.outlier + sizeof ws.prior);
+    printf("  z %zu, seed work %zu, hac %zu, evidence %zu, outlier+prior %zu\n", sizeof ws.z, sizeof ws.seed_ws,
+           sizeof ws.hac, sizeof ws.ev, sizeof ws.outlier + sizeof ws.prior);
     printf("sizeof(cluster_result_t)    = %zu bytes\n", sizeof(cluster_result_t));
     return 0;
 }

@@ -13,10 +13,10 @@
 
 /// Ground-truth spikes of one channel, ascending sample index.
 typedef struct {
-    uint64_t *sample;   ///< trough sample (per channel) in recording.bin
-    int32_t *neuron;    ///< neuron id (>= 0)
+    uint64_t *sample;  ///< trough sample (per channel) in recording.bin
+    int32_t *neuron;   ///< neuron id (>= 0)
     size_t n;
-    int32_t max_neuron; ///< largest id seen, -1 if none
+    int32_t max_neuron;  ///< largest id seen, -1 if none
 } cc_truth_t;
 
 /// The exporter's header line.

@@ -38,16 +38,16 @@
 #include "pipeline/interval_chain.h"
 #include "recording.h"
 
-#define CC_D 2u                  ///< feature dimension (thesis §3.5: 2-D PCA)
-#define CC_MAX_NEURONS 64u       ///< truth neurons per channel
-#define CC_TRUE_MIN_SPIKES 10u   ///< a neuron is "in range" with at least this many detected spikes...
-#define CC_TRUE_MIN_FRACTION 0.5 ///< ...and at least this fraction of its spikes detected
-#define CC_MATCH_MS 0.5          ///< a detection within this of a truth trough is that spike
-#define CC_PD_MAX 0.98           ///< Table 4.1
-#define CC_PD_MIN 0.75           ///< Table 4.1
-#define CC_PD_A 0.6              ///< §4.4.2
-#define CC_PD_B 4.0              ///< §4.4.2
-#define CC_Q_UV_DEFAULT 10.0     ///< q when --q-uv is not given (docs/clustering-consistency.md)
+#define CC_D 2u                   ///< feature dimension (thesis §3.5: 2-D PCA)
+#define CC_MAX_NEURONS 64u        ///< truth neurons per channel
+#define CC_TRUE_MIN_SPIKES 10u    ///< a neuron is "in range" with at least this many detected spikes...
+#define CC_TRUE_MIN_FRACTION 0.5  ///< ...and at least this fraction of its spikes detected
+#define CC_MATCH_MS 0.5           ///< a detection within this of a truth trough is that spike
+#define CC_PD_MAX 0.98            ///< Table 4.1
+#define CC_PD_MIN 0.75            ///< Table 4.1
+#define CC_PD_A 0.6               ///< §4.4.2
+#define CC_PD_B 4.0               ///< §4.4.2
+#define CC_Q_UV_DEFAULT 10.0      ///< q when --q-uv is not given (docs/clustering-consistency.md)
 
 typedef struct {
     const char *dir;
@@ -55,19 +55,19 @@ typedef struct {
     double q_uv;
     int drift;
     int header;
-    int clusters;   ///< --clusters: composition of every chosen cluster on stderr
-    int map_bic;    ///< --map-evidence bic: MAP with BIC instead of Laplace (diagnostic)
+    int clusters;  ///< --clusters: composition of every chosen cluster on stderr
+    int map_bic;   ///< --map-evidence bic: MAP with BIC instead of Laplace (diagnostic)
 } cc_options_t;
 
 /// One processed interval (signal chain output plus truth labels).
 typedef struct {
-    sx_windows_t win;           ///< the interval's windows (int16 counts, gain: µV per count)
+    sx_windows_t win;  ///< the interval's windows (int16 counts, gain: µV per count)
     double y[EM_N_MAX * CC_D];
-    int32_t truth_of[EM_N_MAX]; ///< truth neuron of each detected spike, -1 if none
+    int32_t truth_of[EM_N_MAX];  ///< truth neuron of each detected spike, -1 if none
     uint32_t n_all[CC_MAX_NEURONS];
     uint32_t n_det[CC_MAX_NEURONS];
     double duration_s;
-    int valid;                  ///< the chain produced features (≥ 2 spikes, Ξ SPD)
+    int valid;  ///< the chain produced features (≥ 2 spikes, Ξ SPD)
 } cc_interval_data_t;
 
 /// What the MAP method carries from interval k-1 to k.
@@ -75,13 +75,13 @@ typedef struct {
     int have;
     size_t g;
     uint8_t labels[EM_N_MAX];
-    double post[EM_G_MAX];      ///< model posterior P(M_m | Y^{1:k-1})
+    double post[EM_G_MAX];  ///< model posterior P(M_m | Y^{1:k-1})
     int have_post;
 } cc_map_state_t;
 
-static ic_workspace_t chain;    ///< the controller's interval chain
-static uint32_t chain_fs_hz;     ///< its sample rate: the recording's, in whole Hz
-static uint8_t chain_top_k;      ///< robust amplitude's k (the approach guard's default; not used here)
+static ic_workspace_t chain;  ///< the controller's interval chain
+static uint32_t chain_fs_hz;  ///< its sample rate: the recording's, in whole Hz
+static uint8_t chain_top_k;   ///< robust amplitude's k (the approach guard's default; not used here)
 static pca_basis_t basis;
 static cc_interval_data_t ivd[2];
 static cluster_workspace_t cws;
@@ -131,7 +131,8 @@ static uint32_t true_count(const cc_interval_data_t *d, char *ids, size_t idlen)
     size_t pos = 0u;
     ids[0] = '\0';
     for (uint32_t u = 0u; u < CC_MAX_NEURONS; ++u) {
-        if ((d->n_det[u] >= CC_TRUE_MIN_SPIKES) && ((double)d->n_det[u] >= CC_TRUE_MIN_FRACTION * (double)d->n_all[u])) {
+        if ((d->n_det[u] >= CC_TRUE_MIN_SPIKES) &&
+            ((double)d->n_det[u] >= CC_TRUE_MIN_FRACTION * (double)d->n_all[u])) {
             const int w = snprintf(ids + pos, idlen - pos, "%s%u", (n > 0u) ? ";" : "", u);
             if ((w > 0) && ((size_t)w < idlen - pos)) {
                 pos += (size_t)w;
@@ -219,7 +220,8 @@ static int make_target(const cc_interval_data_t *prev, const uint8_t *labels, ui
         }
     }
     memset(tg, 0, sizeof *tg);
-    if ((m < (size_t)EM_MIN_POINTS_PER_CLUSTER(CC_D)) || (qm_feature_cov(py, m, CC_D, tg->mean, tg->cluster_cov) != MD_OK)) {
+    if ((m < (size_t)EM_MIN_POINTS_PER_CLUSTER(CC_D)) ||
+        (qm_feature_cov(py, m, CC_D, tg->mean, tg->cluster_cov) != MD_OK)) {
         return -1;
     }
     double chol[CC_D * CC_D];
@@ -435,8 +437,8 @@ static void print_row(const rec_recording_t *rec, const cc_options_t *o, uint32_
         n_false += (d->truth_of[i] < 0) ? 1u : 0u;
     }
     printf("%s,%llu,%u,%u,%.2f,%zu,%zu,%zu,%u,%s,%zu,%zu,%.4f,%.4f,%zu,%.4f,%.4f,%u\n", rec->scenario,
-           (unsigned long long)rec->seed, o->channel, k, rec->iv[k].depth_um, d->win.n, n_false, chain.noise.n,
-           n_true, ids, n_targets, map->g, map->p, map->acc, ml->g, ml->p, ml->acc, d->win.n_overflow);
+           (unsigned long long)rec->seed, o->channel, k, rec->iv[k].depth_um, d->win.n, n_false, chain.noise.n, n_true,
+           ids, n_targets, map->g, map->p, map->acc, ml->g, ml->p, ml->acc, d->win.n_overflow);
 }
 
 static int run(const cc_options_t *o, const rec_recording_t *rec, const cc_truth_t *truth, int16_t *x, size_t cap)
@@ -458,10 +460,11 @@ static int run(const cc_options_t *o, const rec_recording_t *rec, const cc_truth
             return 1;
         }
         if ((conv.clipped > before.clipped) || (conv.non_finite > before.non_finite)) {
-            (void)fprintf(stderr, "cluster-consistency: %s: interval %u, channel %u: %llu float32 sample(s) clipped to "
-                                  "int16 counts of %g uV, %llu NaN/inf set to 0\n", rec->bin_path, k, o->channel,
-                          (unsigned long long)(conv.clipped - before.clipped), rec->count_uv,
-                          (unsigned long long)(conv.non_finite - before.non_finite));
+            (void)fprintf(stderr,
+                          "cluster-consistency: %s: interval %u, channel %u: %llu float32 sample(s) clipped to "
+                          "int16 counts of %g uV, %llu NaN/inf set to 0\n",
+                          rec->bin_path, k, o->channel, (unsigned long long)(conv.clipped - before.clipped),
+                          rec->count_uv, (unsigned long long)(conv.non_finite - before.non_finite));
         }
         cur->duration_s = (double)rec->iv[k].num_samples / rec->fs_hz;
         (void)run_chain(x, (size_t)rec->iv[k].num_samples, rec->count_uv, cur);
@@ -530,17 +533,19 @@ int main(int argc, char **argv)
     const ic_config_t probe = {chain_fs_hz, rec.count_uv, (uint32_t)((cap > 0u) ? cap : 1u), chain_top_k};
     int16_t *x = malloc(cap * sizeof *x);
     if ((x == NULL) || (cap == 0u) || (cap > SD_MAX_INTERVAL_SAMPLES) || (ic_begin(&chain, &probe) != MD_OK)) {
-        (void)fprintf(stderr, "cluster-consistency: %s: the firmware's streaming chain cannot take %u Hz (7500..32768) "
-                              "or intervals of %zu samples (at most %u)\n", path, chain_fs_hz, cap,
-                      (unsigned)SD_MAX_INTERVAL_SAMPLES);
+        (void)fprintf(stderr,
+                      "cluster-consistency: %s: the firmware's streaming chain cannot take %u Hz (7500..32768) "
+                      "or intervals of %zu samples (at most %u)\n",
+                      path, chain_fs_hz, cap, (unsigned)SD_MAX_INTERVAL_SAMPLES);
         free(x);
         cc_truth_free(&truth);
         return 1;
     }
     if (o.header) {
-        printf(o.drift ? "k,neuron,dq2_uv2\n"
-                       : "scenario,seed,channel,k,depth_um,n_spikes,n_false,n_noise,n_true,true_ids,n_targets,g_map,p_map,"
-                         "acc_map,g_ml,p_ml,acc_ml,det_overflow\n");
+        printf(o.drift
+                   ? "k,neuron,dq2_uv2\n"
+                   : "scenario,seed,channel,k,depth_um,n_spikes,n_false,n_noise,n_true,true_ids,n_targets,g_map,p_map,"
+                     "acc_map,g_ml,p_ml,acc_ml,det_overflow\n");
     }
     const int rc = run(&o, &rec, &truth, x, cap);
     free(x);

@@ -171,12 +171,24 @@ int main(int argc, char **argv)
     }
     sd_config_t defaults;
     sd_config_default(&defaults, SD_METHOD_WAVELET, 20000u);
-    opts_t o = {10.0, 5u, 20.0, 20000u, 0, 2.0, 8.0, defaults.k_sigma, defaults.cost_ratio_l,
+    opts_t o = {10.0,
+                5u,
+                20.0,
+                20000u,
+                0,
+                2.0,
+                8.0,
+                defaults.k_sigma,
+                defaults.cost_ratio_l,
                 (defaults.wavelet == SD_WAVELET_DOG1) ? 1 : 0,
-                defaults.n_scales, defaults.refine ? 1 : 0, defaults.warmup_ms};
+                defaults.n_scales,
+                defaults.refine ? 1 : 0,
+                defaults.warmup_ms};
     if (parse(argc, argv, &o) != 0) {
-        fprintf(stderr, "usage: %s [--seconds S] [--seeds N] [--rate-hz R] [--fs HZ] [--noise white|band] "
-                        "[--snr-min A] [--snr-max B] [--k K] [--l L] [--wavelet mexhat|dog1]\n", argv[0]);
+        fprintf(stderr,
+                "usage: %s [--seconds S] [--seeds N] [--rate-hz R] [--fs HZ] [--noise white|band] "
+                "[--snr-min A] [--snr-max B] [--k K] [--l L] [--wavelet mexhat|dog1]\n",
+                argv[0]);
         return 2;
     }
     if (bench >= 0) {
@@ -191,8 +203,8 @@ int main(int argc, char **argv)
            "warm-up %.0f ms, refinement %s. Streaming pipeline, %u-sample chunks. "
            "SNR = template peak-to-peak / noise RMS. Hit = detection within 0.5 ms of a true trough.\n\n",
            o.seconds, o.fs, o.band ? "band-limited ([1 2 1] low-pass)" : "white", o.rate_hz, o.seeds, o.k_sigma,
-           o.dog1 ? "first-difference B-spline (DOG1)" : "second-difference B-spline (Mexican hat)", o.scales,
-           o.cost_l, o.warmup_ms, o.refine ? "on" : "off", CHUNK);
+           o.dog1 ? "first-difference B-spline (DOG1)" : "second-difference B-spline (Mexican hat)", o.scales, o.cost_l,
+           o.warmup_ms, o.refine ? "on" : "off", CHUNK);
     printf("| SNR | detector | true spikes | detection rate | false-positive fraction | false positives / s |\n");
     printf("|---:|---|---:|---:|---:|---:|\n");
     int bad = 0;
@@ -205,8 +217,8 @@ int main(int argc, char **argv)
             }
             const double rate = (t.truth > 0u) ? (double)t.hits / (double)t.truth : 0.0;
             const double fpf = (t.det > 0u) ? (double)t.fp / (double)t.det : 0.0;
-            printf("| %.0f | %s | %zu | %.3f | %.3f | %.2f |%s\n", snr, (m == 0) ? "threshold" : "wavelet",
-                   t.truth, rate, fpf, (double)t.fp / (o.seconds * (double)o.seeds),
+            printf("| %.0f | %s | %zu | %.3f | %.3f | %.2f |%s\n", snr, (m == 0) ? "threshold" : "wavelet", t.truth,
+                   rate, fpf, (double)t.fp / (o.seconds * (double)o.seeds),
                    (t.failures || t.overflow) ? " (failures/overflow!)" : "");
             bad |= (t.failures > 0u);
         }

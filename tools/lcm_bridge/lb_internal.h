@@ -12,20 +12,20 @@
 /// Mean waveform parts received for one track id in the current group.
 typedef struct {
     uint16_t track_id;
-    uint8_t parts_mask;                 ///< bit p: part p received
+    uint8_t parts_mask;  ///< bit p: part p received
     int16_t wave_uv[LB_WAVE_MAX_LEN];
 } lb_wave_t;
 
 /// Everything one electrode's controller sent about one cycle
 /// (TLM_CYCLE, TLM_TRACK, TLM_WAVE, TLM_HYP, TLM_SPIKES, TLM_STATUS).
 typedef struct {
-    bool open;                          ///< a frame of this cycle arrived, group not yet published
-    bool closed;                        ///< published; later frames of the same cycle are late
+    bool open;    ///< a frame of this cycle arrived, group not yet published
+    bool closed;  ///< published; later frames of the same cycle are late
     uint16_t cycle;
-    int64_t utime;                      ///< time of the last frame added
+    int64_t utime;  ///< time of the last frame added
     bool have_status;
     struct md_can_tlm_status_t status;
-    bool have_cycle;                    ///< a TLM_CYCLE of this cycle (phase 1 preferred)
+    bool have_cycle;  ///< a TLM_CYCLE of this cycle (phase 1 preferred)
     struct md_can_tlm_cycle_t cyc;
     bool track_have[LB_MAX_TRACKS];
     struct md_can_tlm_track_t track[LB_MAX_TRACKS];
@@ -33,7 +33,7 @@ typedef struct {
     lb_wave_t wave[LB_MAX_TRACKS];
     bool hyp_have[LB_MAX_HYPS];
     struct md_can_tlm_hyp_t hyp[LB_MAX_HYPS];
-    uint32_t spike_frames;              ///< TLM_SPIKES parts received (the controller sends >= 1, last)
+    uint32_t spike_frames;  ///< TLM_SPIKES parts received (the controller sends >= 1, last)
     uint8_t spike_have[LB_MAX_SPIKES];
     uint32_t spike_sample[LB_MAX_SPIKES];
     int16_t spike_track[LB_MAX_SPIKES];
@@ -41,11 +41,11 @@ typedef struct {
 
 /// HALL_CALIB coefficients of one electrode as they arrive.
 typedef struct {
-    uint8_t count;                      ///< CoeffCount of the set being collected
-    uint32_t have_mask;                 ///< bit k: coefficient k; bit 16 mid, bit 17 half
+    uint8_t count;       ///< CoeffCount of the set being collected
+    uint32_t have_mask;  ///< bit k: coefficient k; bit 16 mid, bit 17 half
     float coeff[LB_MAX_CALIB_COEFFS];
     float code_mid, code_half;
-    bool valid;                         ///< a complete set is in `pub_*`
+    bool valid;  ///< a complete set is in `pub_*`
     uint8_t pub_count;
     double pub_coeff[LB_MAX_CALIB_COEFFS];
     double pub_mid, pub_half;
@@ -53,9 +53,9 @@ typedef struct {
 
 /// HALL_READING frames of one electrode at one bridge time, not yet published.
 typedef struct {
-    int16_t n;                          ///< readings held (0 = none pending)
-    int64_t utime;                      ///< the bridge time they share
-    bool calibrated;                    ///< depth_um from a complete calibration
+    int16_t n;        ///< readings held (0 = none pending)
+    int64_t utime;    ///< the bridge time they share
+    bool calibrated;  ///< depth_um from a complete calibration
     uint8_t seq[LB_HALL_BATCH];
     int32_t raw_code[LB_HALL_BATCH];
     int64_t sample_time_ms[LB_HALL_BATCH];
@@ -108,16 +108,16 @@ void lb_emit(lb_t *st, const char *channel, int64_t utime, const uint8_t *data, 
 void lb_truth_flush(lb_t *st);
 
 /// Encodes msg of lcm-gen type T into a heap buffer and emits it.
-#define LB_PUBLISH(st, channel, T, msg)                                                                  \
-    do {                                                                                                 \
-        const int n_ = T##_encoded_size(msg);                                                            \
-        uint8_t *b_ = (n_ > 0) ? malloc((size_t)n_) : NULL;                                              \
-        if (b_ != NULL && T##_encode(b_, 0, n_, msg) == n_) {                                            \
-            lb_emit((st), (channel), (msg)->utime, b_, n_);                                              \
-        } else {                                                                                         \
-            (st)->stats.sink_errors++;                                                                   \
-        }                                                                                                \
-        free(b_);                                                                                        \
+#define LB_PUBLISH(st, channel, T, msg)                       \
+    do {                                                      \
+        const int n_ = T##_encoded_size(msg);                 \
+        uint8_t *b_ = (n_ > 0) ? malloc((size_t)n_) : NULL;   \
+        if (b_ != NULL && T##_encode(b_, 0, n_, msg) == n_) { \
+            lb_emit((st), (channel), (msg)->utime, b_, n_);   \
+        } else {                                              \
+            (st)->stats.sink_errors++;                        \
+        }                                                     \
+        free(b_);                                             \
     } while (0)
 
 #endif

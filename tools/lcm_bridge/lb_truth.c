@@ -50,7 +50,10 @@ static int64_t us_sat(double us)
     return (int64_t)llround(us);
 }
 
-static int64_t seconds_to_us(double t_s) { return us_sat(t_s * 1e6); }
+static int64_t seconds_to_us(double t_s)
+{
+    return us_sat(t_s * 1e6);
+}
 
 static int64_t spike_time_us(const lb_t *st, double sample)
 {
@@ -155,11 +158,20 @@ static void publish_session(lb_t *st)
     for (int32_t i = 0; i < s->n_neurons; ++i) {
         shapes[i] = s->shape[i];
     }
-    const microdrive_truth_session_t m = {
-        .utime = 0, .seed = s->seed, .sample_rate_hz = s->sample_rate_hz, .num_electrodes = s->n_electrodes,
-        .bg_rms_uv = s->bg_rms_uv, .num_neurons = s->n_neurons, .electrode = s->electrode, .neuron = s->neuron,
-        .x_um = s->x_um, .y_um = s->y_um, .depth_um = s->depth_um, .amp_uv = s->amp_uv, .rate_hz = s->rate_hz,
-        .shape = shapes};
+    const microdrive_truth_session_t m = {.utime = 0,
+                                          .seed = s->seed,
+                                          .sample_rate_hz = s->sample_rate_hz,
+                                          .num_electrodes = s->n_electrodes,
+                                          .bg_rms_uv = s->bg_rms_uv,
+                                          .num_neurons = s->n_neurons,
+                                          .electrode = s->electrode,
+                                          .neuron = s->neuron,
+                                          .x_um = s->x_um,
+                                          .y_um = s->y_um,
+                                          .depth_um = s->depth_um,
+                                          .amp_uv = s->amp_uv,
+                                          .rate_hz = s->rate_hz,
+                                          .shape = shapes};
     LB_PUBLISH(st, LB_CH_TRUTH_SESSION, microdrive_truth_session_t, &m);
 }
 
@@ -169,9 +181,13 @@ static void publish_batch(lb_t *st)
     if (b->n == 0) {
         return;
     }
-    const microdrive_truth_spikes_t m = {.utime = spike_time_us(st, (double)b->sample[0]), .electrode = b->electrode,
-                                         .sample_rate_hz = st->truth.sample_rate_hz, .num_spikes = b->n,
-                                         .sample = b->sample, .neuron = b->neuron, .amp_uv = b->amp_uv};
+    const microdrive_truth_spikes_t m = {.utime = spike_time_us(st, (double)b->sample[0]),
+                                         .electrode = b->electrode,
+                                         .sample_rate_hz = st->truth.sample_rate_hz,
+                                         .num_spikes = b->n,
+                                         .sample = b->sample,
+                                         .neuron = b->neuron,
+                                         .amp_uv = b->amp_uv};
     LB_PUBLISH(st, LB_CH_TRUTH_SPIKES, microdrive_truth_spikes_t, &m);
     b->n = 0;
 }
@@ -270,10 +286,8 @@ static int on_death(lb_t *st, const cJSON *root)
         !electrode_field(root, &e) || !neuron_field(root, 0, &id)) {
         return -1;
     }
-    const microdrive_truth_death_t m = {.utime = t_us,
-                                        .electrode = e,
-                                        .neuron = id,
-                                        .distance_um = (float)num(root, "distance_um", 0.0)};
+    const microdrive_truth_death_t m = {
+        .utime = t_us, .electrode = e, .neuron = id, .distance_um = (float)num(root, "distance_um", 0.0)};
     LB_PUBLISH(st, LB_CH_TRUTH_DEATH, microdrive_truth_death_t, &m);
     return 0;
 }
@@ -312,8 +326,13 @@ static int on_state(lb_t *st, const cJSON *root)
     microdrive_truth_state_t m = {.utime = t_us,
                                   .electrode = e,
                                   .label = (char *)(cJSON_IsString(label) ? label->valuestring : ""),
-                                  .tip_um = num(root, "tip_um", 0.0), .neuron = neuron, .depth_um = depth,
-                                  .alive = alive, .distance_um = dist, .snr = snr, .snr_peak_depth_um = peak_depth,
+                                  .tip_um = num(root, "tip_um", 0.0),
+                                  .neuron = neuron,
+                                  .depth_um = depth,
+                                  .alive = alive,
+                                  .distance_um = dist,
+                                  .snr = snr,
+                                  .snr_peak_depth_um = peak_depth,
                                   .snr_peak = peak};
     const cJSON *n = NULL;
     cJSON_ArrayForEach(n, neurons)

@@ -21,7 +21,10 @@
 
 static void hall_publish(lb_t *st, size_t e);
 
-size_t lb_size(void) { return sizeof(lb_t); }
+size_t lb_size(void)
+{
+    return sizeof(lb_t);
+}
 
 int lb_init(lb_t *st, lb_time_mode_t mode, lb_sink_fn sink, void *sink_ctx)
 {
@@ -35,9 +38,15 @@ int lb_init(lb_t *st, lb_time_mode_t mode, lb_sink_fn sink, void *sink_ctx)
     return 0;
 }
 
-int64_t lb_now_us(const lb_t *st) { return st->mode == LB_TIME_SIM ? st->sim_time_us : st->frame_time_us; }
+int64_t lb_now_us(const lb_t *st)
+{
+    return st->mode == LB_TIME_SIM ? st->sim_time_us : st->frame_time_us;
+}
 
-const lb_stats_t *lb_stats(const lb_t *st) { return &st->stats; }
+const lb_stats_t *lb_stats(const lb_t *st)
+{
+    return &st->stats;
+}
 
 void lb_emit(lb_t *st, const char *channel, int64_t utime, const uint8_t *data, int len)
 {
@@ -287,11 +296,19 @@ static void on_status(lb_t *st, const md_frame_t *f)
     st->stats.telemetry++;
     g->have_status = true;
     g->status = r;
-    const microdrive_status_t m = {
-        .utime = g->utime, .electrode = (int8_t)r.electrode, .cycle = r.cycle, .sfsm_state = (int8_t)r.sfsm_state,
-        .depth_um = r.depth_um, .target_depth_um = r.target_depth_um, .snr = r.snr, .iqm = r.iqm,
-        .dominant_track = r.dominant_track, .num_tracks = r.num_tracks, .num_hypotheses = r.num_hypotheses,
-        .num_spikes = r.num_spikes, .flags = r.flags};
+    const microdrive_status_t m = {.utime = g->utime,
+                                   .electrode = (int8_t)r.electrode,
+                                   .cycle = r.cycle,
+                                   .sfsm_state = (int8_t)r.sfsm_state,
+                                   .depth_um = r.depth_um,
+                                   .target_depth_um = r.target_depth_um,
+                                   .snr = r.snr,
+                                   .iqm = r.iqm,
+                                   .dominant_track = r.dominant_track,
+                                   .num_tracks = r.num_tracks,
+                                   .num_hypotheses = r.num_hypotheses,
+                                   .num_spikes = r.num_spikes,
+                                   .flags = r.flags};
     LB_PUBLISH(st, LB_CH_STATUS, microdrive_status_t, &m);
     group_maybe_publish(st, g);
 }
@@ -312,9 +329,13 @@ static void on_cycle(lb_t *st, const md_frame_t *f)
         g->have_cycle = true;
         g->cyc = r;
     }
-    const microdrive_cycle_t m = {.utime = g->utime, .electrode = (int8_t)r.electrode, .phase = (int8_t)r.phase,
-                                  .cycle = r.cycle, .interval_id = r.interval_id,
-                                  .sample_rate_hz = r.sample_rate_hz, .num_samples = r.num_samples,
+    const microdrive_cycle_t m = {.utime = g->utime,
+                                  .electrode = (int8_t)r.electrode,
+                                  .phase = (int8_t)r.phase,
+                                  .cycle = r.cycle,
+                                  .interval_id = r.interval_id,
+                                  .sample_rate_hz = r.sample_rate_hz,
+                                  .num_samples = r.num_samples,
                                   .start_time_us = (int64_t)r.start_time_us};
     LB_PUBLISH(st, LB_CH_CYCLE, microdrive_cycle_t, &m);
     group_maybe_publish(st, g);
@@ -444,9 +465,12 @@ static void on_act_status(lb_t *st, const md_frame_t *f)
         return;
     }
     st->stats.telemetry++;
-    const microdrive_actuator_t m = {.utime = lb_now_us(st), .electrode = (int8_t)r.electrode,
-                                     .state = (int8_t)r.state, .cmd_seq = r.cmd_seq,
-                                     .end_stops = (int8_t)r.end_stops, .steps_done = r.steps_done,
+    const microdrive_actuator_t m = {.utime = lb_now_us(st),
+                                     .electrode = (int8_t)r.electrode,
+                                     .state = (int8_t)r.state,
+                                     .cmd_seq = r.cmd_seq,
+                                     .end_stops = (int8_t)r.end_stops,
+                                     .steps_done = r.steps_done,
                                      .steps_remaining = r.steps_remaining};
     LB_PUBLISH(st, LB_CH_ACTUATOR, microdrive_actuator_t, &m);
 }
@@ -471,9 +495,14 @@ static void hall_publish(lb_t *st, size_t e)
     if (b->n == 0) {
         return;
     }
-    const microdrive_hall_t m = {.utime = b->utime, .electrode = (int8_t)e, .calibrated = b->calibrated,
-                                 .num_readings = b->n, .seq = b->seq, .raw_code = b->raw_code,
-                                 .sample_time_ms = b->sample_time_ms, .depth_um = b->depth_um};
+    const microdrive_hall_t m = {.utime = b->utime,
+                                 .electrode = (int8_t)e,
+                                 .calibrated = b->calibrated,
+                                 .num_readings = b->n,
+                                 .seq = b->seq,
+                                 .raw_code = b->raw_code,
+                                 .sample_time_ms = b->sample_time_ms,
+                                 .depth_um = b->depth_um};
     LB_PUBLISH(st, LB_CH_HALL, microdrive_hall_t, &m);
     b->n = 0;
 }
@@ -543,8 +572,11 @@ static void calib_maybe_publish(lb_t *st, lb_calib_t *c, uint8_t electrode)
     memcpy(c->pub_coeff, coeff, sizeof coeff);
     c->pub_mid = mid;
     c->pub_half = half;
-    const microdrive_hall_calib_t m = {.utime = lb_now_us(st), .electrode = (int8_t)electrode, .code_mid = mid,
-                                       .code_half = half, .num_coeffs = (int16_t)c->count,
+    const microdrive_hall_calib_t m = {.utime = lb_now_us(st),
+                                       .electrode = (int8_t)electrode,
+                                       .code_mid = mid,
+                                       .code_half = half,
+                                       .num_coeffs = (int16_t)c->count,
                                        .coeff_um = c->pub_coeff};
     LB_PUBLISH(st, LB_CH_HALL_CALIB, microdrive_hall_calib_t, &m);
 }

@@ -18,18 +18,18 @@
 #include "md_frame.h"
 
 /// LCM channel names (UPPER_SNAKE; one type per channel, docs/telemetry.md).
-#define LB_CH_STATUS "MD_STATUS"               ///< microdrive.status_t
-#define LB_CH_CYCLE "MD_CYCLE"                 ///< microdrive.cycle_t
-#define LB_CH_TRACKS "MD_TRACKS"               ///< microdrive.tracks_t
-#define LB_CH_HYPOTHESES "MD_HYPOTHESES"       ///< microdrive.hypotheses_t
-#define LB_CH_SPIKES "MD_SPIKES"               ///< microdrive.spikes_t
-#define LB_CH_ACTUATOR "MD_ACTUATOR"           ///< microdrive.actuator_t
-#define LB_CH_HALL "MD_HALL"                   ///< microdrive.hall_t (readings batched)
-#define LB_CH_HALL_CALIB "MD_HALL_CALIB"       ///< microdrive.hall_calib_t
-#define LB_CH_TRUTH_SESSION "MD_TRUTH_SESSION" ///< microdrive.truth_session_t
-#define LB_CH_TRUTH_STATE "MD_TRUTH_STATE"     ///< microdrive.truth_state_t
-#define LB_CH_TRUTH_SPIKES "MD_TRUTH_SPIKES"   ///< microdrive.truth_spikes_t
-#define LB_CH_TRUTH_DEATH "MD_TRUTH_DEATH"     ///< microdrive.truth_death_t
+#define LB_CH_STATUS "MD_STATUS"                ///< microdrive.status_t
+#define LB_CH_CYCLE "MD_CYCLE"                  ///< microdrive.cycle_t
+#define LB_CH_TRACKS "MD_TRACKS"                ///< microdrive.tracks_t
+#define LB_CH_HYPOTHESES "MD_HYPOTHESES"        ///< microdrive.hypotheses_t
+#define LB_CH_SPIKES "MD_SPIKES"                ///< microdrive.spikes_t
+#define LB_CH_ACTUATOR "MD_ACTUATOR"            ///< microdrive.actuator_t
+#define LB_CH_HALL "MD_HALL"                    ///< microdrive.hall_t (readings batched)
+#define LB_CH_HALL_CALIB "MD_HALL_CALIB"        ///< microdrive.hall_calib_t
+#define LB_CH_TRUTH_SESSION "MD_TRUTH_SESSION"  ///< microdrive.truth_session_t
+#define LB_CH_TRUTH_STATE "MD_TRUTH_STATE"      ///< microdrive.truth_state_t
+#define LB_CH_TRUTH_SPIKES "MD_TRUTH_SPIKES"    ///< microdrive.truth_spikes_t
+#define LB_CH_TRUTH_DEATH "MD_TRUTH_DEATH"      ///< microdrive.truth_death_t
 
 /// Capacities of the per-electrode cycle group (records beyond are counted in
 /// lb_stats_t.dropped and left out).
@@ -47,8 +47,8 @@
 
 /// Which clock stamps utime (docs/telemetry.md, "Time").
 typedef enum {
-    LB_TIME_SIM = 0,  ///< the last SIM_CLOCK SimTime_us seen (0 before any): deterministic
-    LB_TIME_FRAME = 1 ///< the caller's frame time (candump log stamp or wall clock)
+    LB_TIME_SIM = 0,   ///< the last SIM_CLOCK SimTime_us seen (0 before any): deterministic
+    LB_TIME_FRAME = 1  ///< the caller's frame time (candump log stamp or wall clock)
 } lb_time_mode_t;
 
 /// Receives one encoded message. channel: one of LB_CH_*; utime: the
@@ -57,17 +57,17 @@ typedef int (*lb_sink_fn)(void *ctx, const char *channel, int64_t utime, const u
 
 /// Counters; nothing is dropped without a count.
 typedef struct {
-    uint64_t frames;          ///< frames fed
-    uint64_t telemetry;       ///< frames decoded into a message or a group
-    uint64_t ignored;         ///< frames of ids the bridge does not translate (REC_DATA, heartbeats...)
-    uint64_t malformed;       ///< wrong length or unpack failure
-    uint64_t dropped;         ///< records beyond a capacity (electrode, index, part)
-    uint64_t late;            ///< TLM frames for a cycle group already published
-    uint64_t messages;        ///< messages handed to the sink
-    uint64_t sink_errors;     ///< sink returned < 0, or encoding failed
-    uint64_t truth_records;   ///< truth lines consumed
-    uint64_t truth_errors;    ///< truth lines that failed to parse or lacked fields
-    uint64_t truth_ignored;   ///< truth records of a type the bridge does not translate
+    uint64_t frames;         ///< frames fed
+    uint64_t telemetry;      ///< frames decoded into a message or a group
+    uint64_t ignored;        ///< frames of ids the bridge does not translate (REC_DATA, heartbeats...)
+    uint64_t malformed;      ///< wrong length or unpack failure
+    uint64_t dropped;        ///< records beyond a capacity (electrode, index, part)
+    uint64_t late;           ///< TLM frames for a cycle group already published
+    uint64_t messages;       ///< messages handed to the sink
+    uint64_t sink_errors;    ///< sink returned < 0, or encoding failed
+    uint64_t truth_records;  ///< truth lines consumed
+    uint64_t truth_errors;   ///< truth lines that failed to parse or lacked fields
+    uint64_t truth_ignored;  ///< truth records of a type the bridge does not translate
 } lb_stats_t;
 
 typedef struct lb lb_t;

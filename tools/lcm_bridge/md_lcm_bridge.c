@@ -28,7 +28,7 @@
 #define EXIT_RUNTIME 1
 #define EXIT_USAGE 2
 #define EXIT_BUS 3
-#define RECEIVE_SLICE_US 100000 ///< live loop wakes this often (signals, truth tail, duration)
+#define RECEIVE_SLICE_US 100000  ///< live loop wakes this often (signals, truth tail, duration)
 
 static volatile sig_atomic_t g_stop = 0;
 
@@ -41,7 +41,7 @@ static void on_signal(int sig)
 typedef struct {
     const char *bus_spec, *from_log, *truth, *lcm_url, *write_log;
     lb_time_mode_t time_mode;
-    double duration_s;     ///< live only; 0 = until SIGINT/SIGTERM
+    double duration_s;  ///< live only; 0 = until SIGINT/SIGTERM
     int quiet;
 } opts_t;
 
@@ -49,7 +49,7 @@ typedef struct {
 typedef struct {
     lcm_t *lcm;
     lcm_eventlog_t *log;
-    int64_t last_ts;       ///< event timestamps are kept non-decreasing for lcm-logplayer
+    int64_t last_ts;  ///< event timestamps are kept non-decreasing for lcm-logplayer
     int64_t events;
     uint64_t write_errors;
 } sink_t;
@@ -68,19 +68,18 @@ typedef struct {
 
 static int usage(void)
 {
-    fprintf(stderr,
-            "usage: md-lcm-bridge (--bus SPEC | --from-log FILE) [--truth FILE] [--lcm-url URL]\n"
-            "                     [--write-log FILE] [--time sim|frame] [--duration-s S] [--quiet]\n"
-            "  --bus SPEC       live: vcan0 | can0 | <ifname> | udp | udp:<port> | auto (docs/bus.md)\n"
-            "  --from-log FILE  replay a candump -L log ('-' = stdin), then exit\n"
-            "  --truth FILE     simulator ground truth, JSON lines (tailed in live mode)\n"
-            "  --lcm-url URL    publish on this LCM provider (memq://, udpm://239.255.76.67:7667?ttl=0 ...)\n"
-            "  --write-log FILE write an LCM event log (lcm-logplayer, lcm-logger format)\n"
-            "                   without --lcm-url, --write-log publishes nothing; with neither,\n"
-            "                   LCM's default URL (LCM_DEFAULT_URL) is used\n"
-            "  --time sim|frame utime from SIM_CLOCK (default, deterministic) or the frame's\n"
-            "                   log stamp / wall clock\n"
-            "  --duration-s S   live: stop after S seconds (default: at SIGINT/SIGTERM)\n");
+    fprintf(stderr, "usage: md-lcm-bridge (--bus SPEC | --from-log FILE) [--truth FILE] [--lcm-url URL]\n"
+                    "                     [--write-log FILE] [--time sim|frame] [--duration-s S] [--quiet]\n"
+                    "  --bus SPEC       live: vcan0 | can0 | <ifname> | udp | udp:<port> | auto (docs/bus.md)\n"
+                    "  --from-log FILE  replay a candump -L log ('-' = stdin), then exit\n"
+                    "  --truth FILE     simulator ground truth, JSON lines (tailed in live mode)\n"
+                    "  --lcm-url URL    publish on this LCM provider (memq://, udpm://239.255.76.67:7667?ttl=0 ...)\n"
+                    "  --write-log FILE write an LCM event log (lcm-logplayer, lcm-logger format)\n"
+                    "                   without --lcm-url, --write-log publishes nothing; with neither,\n"
+                    "                   LCM's default URL (LCM_DEFAULT_URL) is used\n"
+                    "  --time sim|frame utime from SIM_CLOCK (default, deterministic) or the frame's\n"
+                    "                   log stamp / wall clock\n"
+                    "  --duration-s S   live: stop after S seconds (default: at SIGINT/SIGTERM)\n");
     return EXIT_USAGE;
 }
 
@@ -140,9 +139,12 @@ static int sink_emit(void *ctx, const char *channel, int64_t utime, const uint8_
     }
     if (s->log != NULL) {
         s->last_ts = (utime > s->last_ts) ? utime : s->last_ts;
-        lcm_eventlog_event_t ev = {.eventnum = s->events, .timestamp = s->last_ts,
-                                   .channellen = (int32_t)strlen(channel), .datalen = (int32_t)len,
-                                   .channel = (char *)(uintptr_t)channel, .data = (void *)(uintptr_t)data};
+        lcm_eventlog_event_t ev = {.eventnum = s->events,
+                                   .timestamp = s->last_ts,
+                                   .channellen = (int32_t)strlen(channel),
+                                   .datalen = (int32_t)len,
+                                   .channel = (char *)(uintptr_t)channel,
+                                   .data = (void *)(uintptr_t)data};
         if (lcm_eventlog_write_event(s->log, &ev) != 0) {
             s->write_errors++;
             rc = -1;
@@ -332,7 +334,7 @@ int main(int argc, char **argv)
 
     uint64_t bad_lines = 0u;
     int rc = (o.from_log != NULL) ? run_log(&o, st, &t, &bad_lines) : run_bus(&o, st, &t);
-    lb_flush(st);           /* open cycle groups first, then the rest of the truth */
+    lb_flush(st); /* open cycle groups first, then the rest of the truth */
     truth_pump(&t, st, -1);
     lb_flush(st);
 

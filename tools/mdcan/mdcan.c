@@ -38,14 +38,13 @@ static void on_signal(int sig)
 
 static int usage(void)
 {
-    fprintf(stderr,
-            "usage: mdcan dump --bus SPEC [--count N] [--timeout-ms T] [--iface LABEL]\n"
-            "       mdcan send --bus SPEC FRAME [FRAME...]\n"
-            "       mdcan bridge --serial PATH --bus SPEC [--wait-ms N]\n"
-            "SPEC:  vcan0 | can0 | <ifname> | udp | udp:<port> | auto\n"
-            "FRAME: 123#DEADBEEF (11-bit) | 1ABCDEF0#0011 (29-bit) | 123##1<data> (CAN FD, 1 = BRS)\n"
-            "dump prints candump -L lines: (sec.usec) LABEL ID#DATA; --timeout-ms ends it after T ms\n"
-            "without frames; exit 1 if --count frames did not arrive.\n");
+    fprintf(stderr, "usage: mdcan dump --bus SPEC [--count N] [--timeout-ms T] [--iface LABEL]\n"
+                    "       mdcan send --bus SPEC FRAME [FRAME...]\n"
+                    "       mdcan bridge --serial PATH --bus SPEC [--wait-ms N]\n"
+                    "SPEC:  vcan0 | can0 | <ifname> | udp | udp:<port> | auto\n"
+                    "FRAME: 123#DEADBEEF (11-bit) | 1ABCDEF0#0011 (29-bit) | 123##1<data> (CAN FD, 1 = BRS)\n"
+                    "dump prints candump -L lines: (sec.usec) LABEL ID#DATA; --timeout-ms ends it after T ms\n"
+                    "without frames; exit 1 if --count frames did not arrive.\n");
     return EXIT_USAGE;
 }
 
@@ -75,18 +74,10 @@ static int open_bus(md_bus_t *bus, const char *spec, char *why, size_t why_len)
 static void default_label(const md_bus_t *bus, char *label, size_t cap)
 {
     switch (bus->kind) {
-    case MD_BUS_SOCKETCAN:
-        (void)snprintf(label, cap, "%s", bus->name);
-        break;
-    case MD_BUS_UDP:
-        (void)snprintf(label, cap, "udp%u", (unsigned)bus->sock.port);
-        break;
-    case MD_BUS_INPROC:
-        (void)snprintf(label, cap, "inproc");
-        break;
-    default:
-        (void)snprintf(label, cap, "bus");
-        break;
+    case MD_BUS_SOCKETCAN: (void)snprintf(label, cap, "%s", bus->name); break;
+    case MD_BUS_UDP: (void)snprintf(label, cap, "udp%u", (unsigned)bus->sock.port); break;
+    case MD_BUS_INPROC: (void)snprintf(label, cap, "inproc"); break;
+    default: (void)snprintf(label, cap, "bus"); break;
     }
 }
 
@@ -113,9 +104,9 @@ static int print_frame(const char *label, const md_frame_t *f)
 typedef struct {
     const char *bus;
     const char *iface;
-    long long count;         ///< 0 = unlimited
-    long long timeout_ms;    ///< idle timeout; -1 = none
-    int first_frame;         ///< argv index of the first FRAME (send)
+    long long count;       ///< 0 = unlimited
+    long long timeout_ms;  ///< idle timeout; -1 = none
+    int first_frame;       ///< argv index of the first FRAME (send)
 } options_t;
 
 static int parse_options(int argc, char **argv, bool is_dump, options_t *o)

@@ -121,7 +121,10 @@ typedef struct {
     int line;          /* index into g_txq */
 } txq_t;
 
-static size_t txq_used(const txq_t *q) { return q->head - q->tail; }
+static size_t txq_used(const txq_t *q)
+{
+    return q->head - q->tail;
+}
 
 /* n bytes striped over the lines' queues, byte k of the stream on line
  * (*next + k) mod lines; all or nothing. */
@@ -352,7 +355,8 @@ int mdcan_bridge_main(int argc, char **argv)
         (void)close(fds[j]);
     }
     md_bus_close(&bus);
-    if (st.txq_overflow > 0u || st.bus_tx_errors > 0u || dec.bad_crc + dec.bad_frame + dec.bad_esc + dec.too_long > 0u) {
+    if (st.txq_overflow > 0u || st.bus_tx_errors > 0u ||
+        dec.bad_crc + dec.bad_frame + dec.bad_esc + dec.too_long > 0u) {
         status = 1;
     }
     return status;

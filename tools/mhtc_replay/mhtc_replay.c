@@ -26,9 +26,9 @@
 #include "recording.h"
 #include "tracking/mhtc.h"
 
-#define RP_Q_UV_DEFAULT 10.0  ///< process-noise std per waveform sample and interval (µV)
-#define RP_MAX_IDS 4096u      ///< distinct track IDs summarised
-#define RP_PATH_MAX REC_PATH_MAX ///< longest output path
+#define RP_Q_UV_DEFAULT 10.0      ///< process-noise std per waveform sample and interval (µV)
+#define RP_MAX_IDS 4096u          ///< distinct track IDs summarised
+#define RP_PATH_MAX REC_PATH_MAX  ///< longest output path
 
 typedef struct {
     const char *recording;
@@ -52,12 +52,12 @@ typedef struct {
 
 /* Large state lives in static storage, as on the controller. */
 static rec_recording_t g_rec;
-static size_t g_cap;              ///< samples of the longest interval (room in x)
-static rec_conversion_t g_conv;   ///< float32 samples clipped / non-finite so far
-static uint32_t g_fs_hz;          ///< the chain's sample rate: the recording's, in whole Hz
-static uint8_t g_top_k;           ///< robust amplitude's k (the approach guard's default)
-static uint64_t g_not_kept;       ///< detections beyond the chain's window capacity, all intervals
-static ic_workspace_t g_ws;       ///< the interval chain (as the controller's md_workspace_t)
+static size_t g_cap;             ///< samples of the longest interval (room in x)
+static rec_conversion_t g_conv;  ///< float32 samples clipped / non-finite so far
+static uint32_t g_fs_hz;         ///< the chain's sample rate: the recording's, in whole Hz
+static uint8_t g_top_k;          ///< robust amplitude's k (the approach guard's default)
+static uint64_t g_not_kept;      ///< detections beyond the chain's window capacity, all intervals
+static ic_workspace_t g_ws;      ///< the interval chain (as the controller's md_workspace_t)
 static ic_out_t g_out;
 static mhtc_state_t g_st;
 static uint32_t g_id_intervals[RP_MAX_IDS];
@@ -67,11 +67,11 @@ typedef struct {
     uint32_t k;
     uint64_t start;
     size_t n;
-    uint32_t *t;                                  ///< spike times (heap)
+    uint32_t *t;  ///< spike times (heap)
     size_t n_hyp;
     uint8_t parent[MHTC_L_MAX];
     int32_t ct[MHTC_L_MAX][MHTC_G_MAX];
-    uint8_t *labels;                              ///< n_hyp × n (heap)
+    uint8_t *labels;  ///< n_hyp × n (heap)
 } rp_lineage_t;
 
 static rp_lineage_t g_lin[REC_MAX_INTERVALS];
@@ -82,7 +82,8 @@ static int rp_usage(const char *msg)
     (void)fprintf(stderr,
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
-                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
+                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] "
+                  "[--unimodal-ratio R] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -159,7 +160,8 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
         } else if (strcmp(a, "--q-move") == 0) {
             bad = rp_num(v, 0.0, 1.0, &o->q_move);
         } else if (strcmp(a, "--n-scan") == 0) {
-            bad = rp_num(v, 0.0, (double)(MHTC_HIST_MAX - 1u), &o->n_scan) || (fabs(o->n_scan - floor(o->n_scan)) > 0.0);
+            bad = rp_num(v, 0.0, (double)(MHTC_HIST_MAX - 1u), &o->n_scan) ||
+                  (fabs(o->n_scan - floor(o->n_scan)) > 0.0);
         } else if (strcmp(a, "--unimodal-ratio") == 0) {
             bad = rp_num(v, 0.0, 1.0, &o->unimodal_ratio);
         } else if (strcmp(a, "--em-tol") == 0) {
@@ -186,9 +188,10 @@ static void rp_report_not_kept(uint32_t k)
 {
     const uint64_t n = (uint64_t)g_ws.win.n_overflow + (uint64_t)g_ws.win.n_lost;
     if (n > 0u) {
-        (void)fprintf(stderr, "mhtc-replay: %s: interval %u: %llu detection(s) not kept: %u beyond the capacity of %u "
-                              "windows per interval (MD_MAX_SPIKES), %u no longer in the delay line; the controller "
-                              "drops the same\n",
+        (void)fprintf(stderr,
+                      "mhtc-replay: %s: interval %u: %llu detection(s) not kept: %u beyond the capacity of %u "
+                      "windows per interval (MD_MAX_SPIKES), %u no longer in the delay line; the controller "
+                      "drops the same\n",
                       g_rec.json_path, k, (unsigned long long)n, g_ws.win.n_overflow, (unsigned)MD_MAX_SPIKES,
                       g_ws.win.n_lost);
         g_not_kept += n;
@@ -214,8 +217,10 @@ static md_status_t rp_chain(const int16_t *x, size_t n, uint32_t k)
         st = ic_features(&g_ws);
     }
     if (st != MD_OK) {
-        (void)fprintf(stderr, "mhtc-replay: interval %u: signal chain failed (%s: no noise snippets or basis); "
-                              "skipped\n", k, md_status_name(st));
+        (void)fprintf(stderr,
+                      "mhtc-replay: interval %u: signal chain failed (%s: no noise snippets or basis); "
+                      "skipped\n",
+                      k, md_status_name(st));
     }
     return st;
 }
@@ -227,8 +232,9 @@ static void rp_json_params(FILE *f, const mhtc_result_t *r)
         const double *m = r->params.mean[g - 1u];
         const double *c = r->params.shape[g - 1u];
         const double l = r->params.lambda;
-        (void)fprintf(f, "%s{\"cluster\":%zu,\"track_id\":%d,\"count\":%.3f,\"weight\":%.6f,\"mean\":[%.6g,%.6g],"
-                         "\"covariance\":[[%.6g,%.6g],[%.6g,%.6g]]}",
+        (void)fprintf(f,
+                      "%s{\"cluster\":%zu,\"track_id\":%d,\"count\":%.3f,\"weight\":%.6f,\"mean\":[%.6g,%.6g],"
+                      "\"covariance\":[[%.6g,%.6g],[%.6g,%.6g]]}",
                       (g > 1u) ? "," : "", g, (int)r->cluster_track[g - 1u], r->n_soft[g], r->params.pi[g - 1u], m[0],
                       m[1], l * c[0], l * c[1], l * c[2], l * c[3]);
     }
@@ -267,8 +273,9 @@ static void rp_json_tracks(FILE *f, const mhtc_result_t *r)
         if ((t->cluster > 0u) && (ic_isolation(&g_ws, t->cluster, &iso) != MD_OK)) {
             memset(&iso, 0, sizeof iso);
         }
-        (void)fprintf(f, "%s{\"id\":%u,\"cluster\":%u,\"misses\":%u,\"p_detect\":%.4f,\"rate_hz\":%.3f,\"snr\":%.4f,"
-                         "\"iqm\":%.4f,\"iqm_defined\":%s,\"mean_feat\":[%.6g,%.6g],",
+        (void)fprintf(f,
+                      "%s{\"id\":%u,\"cluster\":%u,\"misses\":%u,\"p_detect\":%.4f,\"rate_hz\":%.3f,\"snr\":%.4f,"
+                      "\"iqm\":%.4f,\"iqm_defined\":%s,\"mean_feat\":[%.6g,%.6g],",
                       (j > 0u) ? "," : "", t->id, t->cluster, t->misses, t->p_detect, t->rate_hz, snr, iso.id,
                       iso.defined ? "true" : "false", t->mean_feat[0], t->mean_feat[1]);
         rp_json_track_hyps(f, r, t->id);
@@ -288,8 +295,8 @@ static void rp_json_hyps(FILE *f, const mhtc_result_t *r)
         }
         (void)fprintf(f, "]}");
     }
-    (void)fprintf(f, "],\"log_p3\":%.6g,\"log_p4\":%.6g,\"log_assoc\":%.6g,\"models_fitted\":%zu", r->log_p3,
-                  r->log_p4, r->log_assoc, r->models_fitted);
+    (void)fprintf(f, "],\"log_p3\":%.6g,\"log_p4\":%.6g,\"log_assoc\":%.6g,\"models_fitted\":%zu", r->log_p3, r->log_p4,
+                  r->log_assoc, r->models_fitted);
 }
 
 static void rp_write_interval(FILE *jl, FILE *lab, uint32_t k, const rec_interval_t *iv, double ms)
@@ -388,8 +395,9 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
     qsort(g_step_ms, done, sizeof g_step_ms[0], rp_cmp_double);
     (void)fprintf(f, "{\n  \"recording\": \"%s\",\n  \"tracker\": \"%s\",\n  \"channel\": %u,\n", o->recording,
                   mhtc_tracker_name(o->tracker), o->channel);
-    (void)fprintf(f, "  \"dtype\": \"%s\",\n  \"gain_uV\": %g,\n  \"count_uV\": %g,\n  \"samples_clipped\": %llu,\n"
-                     "  \"samples_non_finite\": %llu,\n",
+    (void)fprintf(f,
+                  "  \"dtype\": \"%s\",\n  \"gain_uV\": %g,\n  \"count_uV\": %g,\n  \"samples_clipped\": %llu,\n"
+                  "  \"samples_non_finite\": %llu,\n",
                   rec_dtype_name(g_rec.dtype), g_rec.gain_uv, g_rec.count_uv, (unsigned long long)g_conv.clipped,
                   (unsigned long long)g_conv.non_finite);
     (void)fprintf(f, "  \"intervals\": %u,\n  \"spikes\": %zu,\n  \"q_uv\": %g,\n  \"init_uv\": %g,\n  \"L\": %zu,\n",
@@ -398,12 +406,13 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
     const ic_stats_t *c = &g_ws.stats;
     (void)fprintf(f, "  \"sample_rate_hz\": %u,\n  \"detections_not_kept\": %llu,\n", g_fs_hz,
                   (unsigned long long)g_not_kept);
-    (void)fprintf(f, "  \"chain\": {\"intervals\": %u, \"push_errors\": %u, \"end_errors\": %u, \"feature_errors\": %u, "
-                     "\"track_errors\": %u, \"snr_undefined\": %u, \"iso_undefined\": %u},\n",
+    (void)fprintf(f,
+                  "  \"chain\": {\"intervals\": %u, \"push_errors\": %u, \"end_errors\": %u, \"feature_errors\": %u, "
+                  "\"track_errors\": %u, \"snr_undefined\": %u, \"iso_undefined\": %u},\n",
                   c->intervals, c->push_errors, c->end_errors, c->feature_errors, c->track_errors, c->snr_undefined,
                   c->iso_undefined);
-    (void)fprintf(f, "  \"step_ms_median\": %.3f,\n  \"step_ms_max\": %.3f,\n", (done > 0u) ? g_step_ms[done / 2u] : 0.0,
-                  (done > 0u) ? g_step_ms[done - 1u] : 0.0);
+    (void)fprintf(f, "  \"step_ms_median\": %.3f,\n  \"step_ms_max\": %.3f,\n",
+                  (done > 0u) ? g_step_ms[done / 2u] : 0.0, (done > 0u) ? g_step_ms[done - 1u] : 0.0);
     (void)fprintf(f,
                   "  \"stats\": {\"steps\": %u, \"step_errors\": %u, \"models_pruned\": %u, \"models_failed\": %u, "
                   "\"evidence_fallbacks\": %u, \"empty_intervals\": %u, \"dup_pruned\": %u, \"target_overflow\": %u, "
@@ -463,8 +472,10 @@ static int rp_check_chain(void)
     const double fs = g_rec.fs_hz; /* 1000..200000 (recording.h) */
     g_fs_hz = (uint32_t)llround(fs);
     if ((fs < (double)g_fs_hz) || (fs > (double)g_fs_hz)) {
-        (void)fprintf(stderr, "mhtc-replay: %s: sampling_frequency %.17g Hz: the chain runs at whole Hz (the "
-                              "controller's FE_INFO carries whole Hz): %u Hz\n", g_rec.json_path, fs, g_fs_hz);
+        (void)fprintf(stderr,
+                      "mhtc-replay: %s: sampling_frequency %.17g Hz: the chain runs at whole Hz (the "
+                      "controller's FE_INFO carries whole Hz): %u Hz\n",
+                      g_rec.json_path, fs, g_fs_hz);
     }
     ag_config_t ag;
     ag_config_default(&ag);
@@ -472,19 +483,22 @@ static int rp_check_chain(void)
     for (uint32_t k = 0u; k < g_rec.n_intervals; ++k) {
         const uint64_t n = g_rec.iv[k].num_samples;
         if ((n == 0u) || (n > SD_MAX_INTERVAL_SAMPLES)) {
-            (void)fprintf(stderr, "mhtc-replay: %s: interval %u: %llu samples: the streaming chain takes 1..%u "
-                                  "samples per interval (SD_MAX_INTERVAL_SAMPLES)\n", g_rec.json_path, k,
-                          (unsigned long long)n, (unsigned)SD_MAX_INTERVAL_SAMPLES);
+            (void)fprintf(stderr,
+                          "mhtc-replay: %s: interval %u: %llu samples: the streaming chain takes 1..%u "
+                          "samples per interval (SD_MAX_INTERVAL_SAMPLES)\n",
+                          g_rec.json_path, k, (unsigned long long)n, (unsigned)SD_MAX_INTERVAL_SAMPLES);
             return 1;
         }
         g_cap = ((size_t)n > g_cap) ? (size_t)n : g_cap;
     }
     const ic_config_t probe = {g_fs_hz, g_rec.count_uv, (uint32_t)((g_cap > 0u) ? g_cap : 1u), g_top_k};
     if (ic_begin(&g_ws, &probe) != MD_OK) {
-        (void)fprintf(stderr, "mhtc-replay: %s: interval 0: sampling_frequency %u Hz is not supported by the "
-                              "firmware's streaming chain, which takes 7500..32768 Hz (spike_detect.h: the narrowest "
-                              "wavelet scale, 0.5 ms, needs a box of 2 samples; the 250 ms statistics warm-up must fit "
-                              "SD_WARMUP_MAX = %u samples)\n", g_rec.json_path, g_fs_hz, (unsigned)SD_WARMUP_MAX);
+        (void)fprintf(stderr,
+                      "mhtc-replay: %s: interval 0: sampling_frequency %u Hz is not supported by the "
+                      "firmware's streaming chain, which takes 7500..32768 Hz (spike_detect.h: the narrowest "
+                      "wavelet scale, 0.5 ms, needs a box of 2 samples; the 250 ms statistics warm-up must fit "
+                      "SD_WARMUP_MAX = %u samples)\n",
+                      g_rec.json_path, g_fs_hz, (unsigned)SD_WARMUP_MAX);
         return 1;
     }
     memset(&g_ws.stats, 0, sizeof g_ws.stats); /* the probe is no interval */
@@ -543,10 +557,11 @@ static int rp_read(const rp_options_t *o, uint32_t k, int16_t *x)
         return 1;
     }
     if ((g_conv.clipped > before.clipped) || (g_conv.non_finite > before.non_finite)) {
-        (void)fprintf(stderr, "mhtc-replay: %s: interval %u, channel %u: %llu float32 sample(s) clipped to int16 "
-                              "counts of %g uV, %llu NaN/inf set to 0\n", g_rec.bin_path, k, o->channel,
-                      (unsigned long long)(g_conv.clipped - before.clipped), g_rec.count_uv,
-                      (unsigned long long)(g_conv.non_finite - before.non_finite));
+        (void)fprintf(stderr,
+                      "mhtc-replay: %s: interval %u, channel %u: %llu float32 sample(s) clipped to int16 "
+                      "counts of %g uV, %llu NaN/inf set to 0\n",
+                      g_rec.bin_path, k, o->channel, (unsigned long long)(g_conv.clipped - before.clipped),
+                      g_rec.count_uv, (unsigned long long)(g_conv.non_finite - before.non_finite));
     }
     return 0;
 }
@@ -563,8 +578,8 @@ static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32
             continue; /* as the controller: the tracker does not see the interval */
         }
         /* electrode travel since the last tracked interval, as the controller measures it */
-        const double move =
-            (isfinite(iv->depth_um) && isfinite(tracked_depth)) ? fabs(iv->depth_um - tracked_depth) : 0.0;
+        const double move = (isfinite(iv->depth_um) && isfinite(tracked_depth)) ? fabs(iv->depth_um - tracked_depth)
+                                                                                : 0.0;
         const double t0 = rp_now_ms();
         const md_status_t st = ic_track(&g_ws, &g_st, move);
         const double ms = rp_now_ms() - t0;

@@ -13,8 +13,8 @@
 
 _Static_assert(sizeof(float) == 4u, "float32 samples are read into float");
 
-#define REC_JSON_MAX ((off_t)64 << 20) ///< a sidecar larger than this is not one
-#define REC_INT_MAX 9007199254740992.0 ///< 2^53: integers a JSON number holds exactly
+#define REC_JSON_MAX ((off_t)64 << 20)  ///< a sidecar larger than this is not one
+#define REC_INT_MAX 9007199254740992.0  ///< 2^53: integers a JSON number holds exactly
 
 /// Where messages go: "path: ..." into err.
 typedef struct {
@@ -23,8 +23,8 @@ typedef struct {
     size_t errlen;
 } rec_ctx_t;
 
-__attribute__((format(printf, 3, 4))) static md_status_t rec_fail(const rec_ctx_t *c, md_status_t st,
-                                                                  const char *fmt, ...)
+__attribute__((format(printf, 3, 4))) static md_status_t rec_fail(const rec_ctx_t *c, md_status_t st, const char *fmt,
+                                                                  ...)
 {
     if ((c->err == NULL) || (c->errlen == 0u)) {
         return st;
@@ -92,9 +92,9 @@ static char *rec_slurp(const rec_ctx_t *c, size_t *len, md_status_t *st)
     }
     (void)fclose(f);
     if (buf == NULL) {
-        *st = (n > REC_JSON_MAX) ? rec_fail(c, MD_E_FRAME, "%lld bytes: larger than a sidecar can be (64 MiB)",
-                                            (long long)n)
-                                 : rec_fail(c, MD_E_IO, "cannot read");
+        *st = (n > REC_JSON_MAX)
+                  ? rec_fail(c, MD_E_FRAME, "%lld bytes: larger than a sidecar can be (64 MiB)", (long long)n)
+                  : rec_fail(c, MD_E_IO, "cannot read");
     }
     return buf;
 }
@@ -126,11 +126,11 @@ typedef struct {
     const char *t;
     size_t len;
     size_t pos;
-    const char *why;     ///< set at the first error
-    char what[64];       ///< the unexpected character, for why
-    const char *key;     ///< key of the member whose value holds the error (NULL: none)
+    const char *why;  ///< set at the first error
+    char what[64];    ///< the unexpected character, for why
+    const char *key;  ///< key of the member whose value holds the error (NULL: none)
     size_t key_len;
-    int after;           ///< 1: the error follows the value of `key` instead
+    int after;  ///< 1: the error follows the value of `key` instead
 } rec_json_t;
 
 static int rec_is_space(char ch)
@@ -402,11 +402,10 @@ static const char *rec_type_name(const cJSON *it)
     return cJSON_IsArray(it) ? "an array" : "an object";
 }
 
-static const char *const REC_TOP_KEYS[] = {"sampling_frequency", "num_channels", "dtype", "gain_uV", "offset_uV",
-                                           "byte_order", "layout", "num_samples", "file", "scenario", "seed",
-                                           "intervals"};
-static const char *const REC_INTERVAL_KEYS[] = {"start_sample", "num_samples", "duration_s", "depth_um",
-                                                "hall_code"};
+static const char *const REC_TOP_KEYS[] = {
+    "sampling_frequency", "num_channels", "dtype",    "gain_uV", "offset_uV", "byte_order", "layout",
+    "num_samples",        "file",         "scenario", "seed",    "intervals"};
+static const char *const REC_INTERVAL_KEYS[] = {"start_sample", "num_samples", "duration_s", "depth_um", "hall_code"};
 
 /* A field this reader uses, given twice in one object: cJSON would silently take the first.
  * (Other keys are not read; a linear pass per field keeps a huge object cheap.) */
@@ -427,8 +426,7 @@ static md_status_t rec_unique_keys(const rec_ctx_t *c, const cJSON *obj, const c
 
 /* A finite number obj[key]. MD_OK; 1 if absent and optional; MD_E_FRAME (message) otherwise.
  * `where` prefixes the field name in messages ("" or "intervals[3]."). */
-static int rec_number(const rec_ctx_t *c, const cJSON *obj, const char *where, const char *key, int required,
-                      double *v)
+static int rec_number(const rec_ctx_t *c, const cJSON *obj, const char *where, const char *key, int required, double *v)
 {
     const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
     if (it == NULL) {
@@ -523,8 +521,7 @@ static md_status_t rec_header(const rec_ctx_t *c, const cJSON *root, rec_recordi
     } else {
         char v[200];
         rec_printable(dt, strlen(dt), 32u, v, sizeof v);
-        return rec_fail(c, MD_E_FRAME, "field \"dtype\": \"%s\" is not supported (int16 or float32, little-endian)",
-                        v);
+        return rec_fail(c, MD_E_FRAME, "field \"dtype\": \"%s\" is not supported (int16 or float32, little-endian)", v);
     }
     rec->gain_uv = 1.0;
     if (rec_number(c, root, "", "gain_uV", 0, &rec->gain_uv) < 0) {
@@ -534,10 +531,10 @@ static md_status_t rec_header(const rec_ctx_t *c, const cJSON *root, rec_recordi
         return rec_fail(c, MD_E_FRAME, "field \"gain_uV\": must be > 0, got %g", rec->gain_uv);
     }
     rec->count_uv = ((rec->dtype == REC_DTYPE_FLOAT32) && (rec->gain_uv > REC_F32_MAX_COUNT_UV)) ? REC_F32_MAX_COUNT_UV
-                                                                                                  : rec->gain_uv;
+                                                                                                 : rec->gain_uv;
     double offset = 0.0;
-    if ((rec_number(c, root, "", "offset_uV", 0, &offset) < 0) || (rec_only(c, root, "byte_order", "little") != MD_OK) ||
-        (rec_only(c, root, "layout", "interleaved") != MD_OK) ||
+    if ((rec_number(c, root, "", "offset_uV", 0, &offset) < 0) ||
+        (rec_only(c, root, "byte_order", "little") != MD_OK) || (rec_only(c, root, "layout", "interleaved") != MD_OK) ||
         (rec_integer(c, root, "", "seed", 0, 0.0, 18446744073709549568.0, &rec->seed) < 0)) {
         return MD_E_FRAME;
     }

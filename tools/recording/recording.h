@@ -56,19 +56,17 @@
 
 #include "md_status.h"
 
-#define REC_MAX_INTERVALS 4096u   ///< intervals of one recording
-#define REC_MAX_CHANNELS 1024u    ///< channels of one recording
-#define REC_PATH_MAX 1024u        ///< longest path of the binary
-#define REC_ERR_MAX (2u * REC_PATH_MAX + 256u) ///< err buffer that holds any message whole (unless control bytes are escaped)
+#define REC_MAX_INTERVALS 4096u  ///< intervals of one recording
+#define REC_MAX_CHANNELS 1024u   ///< channels of one recording
+#define REC_PATH_MAX 1024u       ///< longest path of the binary
+#define REC_ERR_MAX \
+    (2u * REC_PATH_MAX + 256u)  ///< err buffer that holds any message whole (unless control bytes are escaped)
 #define REC_FS_MIN_HZ 1000.0
 #define REC_FS_MAX_HZ 200000.0
 #define REC_F32_MAX_COUNT_UV 1.0  ///< float32: coarsest int16 step (µV per count)
 
 /// Sample type of the binary.
-typedef enum {
-    REC_DTYPE_INT16 = 0,
-    REC_DTYPE_FLOAT32 = 1
-} rec_dtype_t;
+typedef enum { REC_DTYPE_INT16 = 0, REC_DTYPE_FLOAT32 = 1 } rec_dtype_t;
 
 /// One interval (sample indices are per channel).
 typedef struct {

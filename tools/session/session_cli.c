@@ -125,8 +125,10 @@ static int cli_param(session_opts_t *o, const char *val, char *msg, size_t msgle
     }
     const int id = (eq == NULL) ? -1 : param_by_name(val, (size_t)(eq - val));
     if (id < 0) {
-        (void)snprintf(msg, msglen, "--param '%s': no parameter of that name (NAME=VALUE; list: microdrive-fw "
-                                    "--params-markdown)", val);
+        (void)snprintf(msg, msglen,
+                       "--param '%s': no parameter of that name (NAME=VALUE; list: microdrive-fw "
+                       "--params-markdown)",
+                       val);
         return -1;
     }
     char *end = NULL;
@@ -149,8 +151,8 @@ int session_apply_params(md_params_t *p, const session_opts_t *o, char *msg, siz
         const md_param_status_t st = md_params_set(p, o->params[i].index, o->params[i].value);
         if (st != MD_PARAM_OK) {
             const md_param_def_t *d = md_params_def((size_t)md_params_find(o->params[i].index));
-            (void)snprintf(msg, msglen, "--param %s refused (status %d; range %g..%g%s)", o->params[i].arg,
-                           (int)st, d->min, d->max, ((d->flags & MD_PARAM_F_INTEGER) != 0u) ? ", whole number" : "");
+            (void)snprintf(msg, msglen, "--param %s refused (status %d; range %g..%g%s)", o->params[i].arg, (int)st,
+                           d->min, d->max, ((d->flags & MD_PARAM_F_INTEGER) != 0u) ? ", whole number" : "");
             return -1;
         }
     }
@@ -282,8 +284,9 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
         }
     }
     if (o->controller == SESSION_CTRL_M7 && (strcmp(o->bus, "inproc") == 0 || strncmp(o->bus, "inproc:", 7) == 0)) {
-        (void)snprintf(msg, msglen, "--controller m7 needs a socket bus (udp, vcan0, auto): QEMU and the bridge are "
-                                    "processes");
+        (void)snprintf(msg, msglen,
+                       "--controller m7 needs a socket bus (udp, vcan0, auto): QEMU and the bridge are "
+                       "processes");
         return -1;
     }
     if (o->cycles > 0u && o->duration_s > 0.0) {

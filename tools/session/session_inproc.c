@@ -48,23 +48,23 @@
 static const md_node_id_t INPROC_PLANT_NODES[3] = {MD_NODE_ACT, MD_NODE_HALL, MD_NODE_FE};
 
 typedef struct {
-    md_bus_t plant_ep, ctrl_ep, rec_ep;   /* must not move while open: static */
-    md_bus_fault_t fault[SCENARIO_BUS_FAULTS_MAX];   /* nested around plant_ep */
+    md_bus_t plant_ep, ctrl_ep, rec_ep;            /* must not move while open: static */
+    md_bus_fault_t fault[SCENARIO_BUS_FAULTS_MAX]; /* nested around plant_ep */
     uint32_t n_fault;
-    md_bus_t *plant_bus;                  /* the plant's endpoint as used: outermost wrapper */
-    const scenario_faults_t *faults;      /* the scenario's (borrowed from the world) */
+    md_bus_t *plant_bus;             /* the plant's endpoint as used: outermost wrapper */
+    const scenario_faults_t *faults; /* the scenario's (borrowed from the world) */
     const session_opts_t *opts;
     simnode_plant_t plant;
     md_controller_t *ctrl;
     session_track_t *track;
-    uint64_t now_us;                      /* the virtual clock */
+    uint64_t now_us; /* the virtual clock */
     uint64_t next_hb_us;
     uint64_t bus_errors;
-    uint64_t hb_silenced;                 /* plant heartbeats not sent: node silent */
-    uint32_t restarts;                    /* controller restarts done */
-    bool restart_pending;                 /* due while the controller was on the stack */
-    bool in_ctrl;                         /* the controller is on the stack: no re-entry */
-    bool in_follow;                       /* clock_follow on the stack: no re-entry */
+    uint64_t hb_silenced; /* plant heartbeats not sent: node silent */
+    uint32_t restarts;    /* controller restarts done */
+    bool restart_pending; /* due while the controller was on the stack */
+    bool in_ctrl;         /* the controller is on the stack: no re-entry */
+    bool in_follow;       /* clock_follow on the stack: no re-entry */
 } inproc_t;
 
 static inproc_t g_ip;
@@ -110,7 +110,7 @@ static void clock_follow(inproc_t *ip, uint64_t t_us);
 static int plant_sink(void *ctx, const md_frame_t *f)
 {
     inproc_t *ip = ctx;
-    clock_follow(ip, ip->plant.now_us);   /* the frame happens at the plant's time */
+    clock_follow(ip, ip->plant.now_us); /* the frame happens at the plant's time */
     return plant_deliver(ip, f);
 }
 
@@ -195,8 +195,8 @@ static int wrap_bus_faults(inproc_t *ip)
 static int open_endpoints(inproc_t *ip, const char *spec)
 {
     char why[160];
-    if (md_bus_open(&ip->plant_ep, spec, why, sizeof why) != 0 || md_bus_open(&ip->ctrl_ep, spec, why, sizeof why) != 0 ||
-        md_bus_open(&ip->rec_ep, spec, why, sizeof why) != 0) {
+    if (md_bus_open(&ip->plant_ep, spec, why, sizeof why) != 0 ||
+        md_bus_open(&ip->ctrl_ep, spec, why, sizeof why) != 0 || md_bus_open(&ip->rec_ep, spec, why, sizeof why) != 0) {
         fprintf(stderr, "microdrive-session: cannot open %s: %s\n", spec, why);
         return -1;
     }
@@ -216,22 +216,22 @@ static int ctrl_boot(inproc_t *ip)
         return -1;
     }
     const session_opts_t *o = ip->opts;
-    char why[200];   /* --param NAME=VALUE, checked at parse time, applied here before the start */
+    char why[200]; /* --param NAME=VALUE, checked at parse time, applied here before the start */
     if (session_apply_params(&md_controller_node(ip->ctrl)->params, o, why, sizeof why) != 0) {
         fprintf(stderr, "microdrive-session: %s\n", why);
         return -1;
     }
-    poll_controller(ip);   /* boot-up heartbeat (state 0), pre-operational */
+    poll_controller(ip); /* boot-up heartbeat (state 0), pre-operational */
     struct md_can_nmt_t nmt = {.nmt_command = (uint8_t)MD_NMT_START, .nmt_target = (uint8_t)MD_NODE_CTRL};
     md_frame_t f;
     memset(&f, 0, sizeof f);
     f.id = MD_CAN_NMT_FRAME_ID;
     f.len = (uint8_t)MD_CAN_NMT_LENGTH;
     (void)md_can_nmt_pack(f.data, &nmt, sizeof f.data);
-    if (md_bus_send(&ip->rec_ep, &f) != 0) {   /* the recorder's endpoint is the operator's */
+    if (md_bus_send(&ip->rec_ep, &f) != 0) { /* the recorder's endpoint is the operator's */
         ip->bus_errors++;
     }
-    session_track_frame(ip->track, &f, ip->now_us);   /* an endpoint does not receive its own frames */
+    session_track_frame(ip->track, &f, ip->now_us); /* an endpoint does not receive its own frames */
     poll_controller(ip);
     return 0;
 }
@@ -241,7 +241,7 @@ static void ctrl_restart(inproc_t *ip)
     ip->restart_pending = false;
     ip->restarts++;
     if (ctrl_boot(ip) != 0) {
-        ip->bus_errors++;   /* cannot happen after a first boot that worked; counted, not hidden */
+        ip->bus_errors++; /* cannot happen after a first boot that worked; counted, not hidden */
     }
 }
 
@@ -310,10 +310,10 @@ static int start_nodes(inproc_t *ip, simnode_world_t *world)
 static session_end_t inproc_loop(inproc_t *ip, uint64_t idle_us)
 {
     uint64_t last_activity = ip->track->activity, activity_at = ip->now_us;
-    uint32_t spins = 0u;   /* passes at one instant without any frame: a controller that never rests */
-    for (;;) {   /* ends by the goal, idleness or a signal */
+    uint32_t spins = 0u; /* passes at one instant without any frame: a controller that never rests */
+    for (;;) {           /* ends by the goal, idleness or a signal */
         const bool served = serve_plant(ip);
-        clock_follow(ip, ip->plant.now_us);   /* a batch that sent nothing may still have moved time */
+        clock_follow(ip, ip->plant.now_us); /* a batch that sent nothing may still have moved time */
         poll_controller(ip);
         if (session_track_done(ip->track)) {
             return SESSION_END_GOAL;
@@ -331,11 +331,10 @@ static session_end_t inproc_loop(inproc_t *ip, uint64_t idle_us)
         const uint64_t d = md_controller_next_deadline_us(ip->ctrl);
         if (served || d <= ip->now_us) {
             if (++spins > INPROC_POLL_GUARD) {
-                fprintf(stderr, "microdrive-session: the controller has work at %" PRIu64 " us forever\n",
-                        ip->now_us);
+                fprintf(stderr, "microdrive-session: the controller has work at %" PRIu64 " us forever\n", ip->now_us);
                 return SESSION_END_ERROR;
             }
-            continue;   /* answers and due work first: the clock stands still */
+            continue; /* answers and due work first: the clock stands still */
         }
         clock_set(ip, (d < ip->next_hb_us) ? d : ip->next_hb_us);
         if (ip->now_us >= ip->next_hb_us) {
@@ -350,14 +349,12 @@ static session_end_t inproc_loop(inproc_t *ip, uint64_t idle_us)
 static void print_faults(const inproc_t *ip)
 {
     const simnode_world_fault_counts_t m = simnode_world_fault_counts(ip->plant.world);
-    if (m.hall_glitches + m.hall_stuck_reads + m.act_stalls + m.act_slips + m.storm_events + m.saturated_samples >
-        0u) {
+    if (m.hall_glitches + m.hall_stuck_reads + m.act_stalls + m.act_slips + m.storm_events + m.saturated_samples > 0u) {
         fprintf(stderr,
                 "microdrive-session: model faults: hall glitches %" PRIu64 ", hall stuck reads %" PRIu64
                 ", actuator stalls %" PRIu64 ", actuator slips %" PRIu64 ", storm events %" PRIu64
                 ", saturated samples %" PRIu64 "\n",
-                m.hall_glitches, m.hall_stuck_reads, m.act_stalls, m.act_slips, m.storm_events,
-                m.saturated_samples);
+                m.hall_glitches, m.hall_stuck_reads, m.act_stalls, m.act_slips, m.storm_events, m.saturated_samples);
     }
     for (uint32_t i = 0; i < ip->n_fault; i++) {
         simnode_bus_fault_print(stderr, "microdrive-session", i, &ip->fault[i]);
@@ -382,7 +379,7 @@ session_end_t session_run_inproc(const session_opts_t *o, const char *resolved_b
     memset(ip, 0, sizeof *ip);
     ip->track = t;
     ip->opts = o;
-    t->stamp_sim = false;   /* the clock follows simulated time (see above): stamp with it */
+    t->stamp_sim = false; /* the clock follows simulated time (see above): stamp with it */
     simnode_world_t *world = simnode_world_create(o->scenario, o->seed, err, sizeof err);
     if (world == NULL) {
         fprintf(stderr, "microdrive-session: %s\n", err);
@@ -399,11 +396,12 @@ session_end_t session_run_inproc(const session_opts_t *o, const char *resolved_b
     }
     md_bus_close(&ip->rec_ep);
     md_bus_close(&ip->ctrl_ep);
-    md_bus_close((ip->plant_bus != NULL) ? ip->plant_bus : &ip->plant_ep);   /* closes the wrappers' chain */
+    md_bus_close((ip->plant_bus != NULL) ? ip->plant_bus : &ip->plant_ep); /* closes the wrappers' chain */
     if (ip->bus_errors > 0u || ip->rec_ep.stats.rx_overflow > 0u || ip->ctrl_ep.stats.rx_overflow > 0u ||
         ip->plant_ep.stats.rx_overflow > 0u) {
-        fprintf(stderr, "microdrive-session: in-process bus lost frames (send errors %" PRIu64
-                ", overflow plant %" PRIu64 " controller %" PRIu64 " recorder %" PRIu64 ")\n",
+        fprintf(stderr,
+                "microdrive-session: in-process bus lost frames (send errors %" PRIu64 ", overflow plant %" PRIu64
+                " controller %" PRIu64 " recorder %" PRIu64 ")\n",
                 ip->bus_errors, ip->plant_ep.stats.rx_overflow, ip->ctrl_ep.stats.rx_overflow,
                 ip->rec_ep.stats.rx_overflow);
         end = SESSION_END_ERROR;

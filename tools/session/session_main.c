@@ -41,7 +41,10 @@
 
 volatile int session_stop_signal = 0;
 
-static void on_signal(int sig) { session_stop_signal = sig; }
+static void on_signal(int sig)
+{
+    session_stop_signal = sig;
+}
 
 static void install_signals(void)
 {
@@ -100,7 +103,7 @@ static const char *pick_python(const session_opts_t *o)
     }
     char dir[PATH_MAX];
     self_dir(dir, sizeof dir);
-    for (int up = 0; up < 8; up++) {   /* build/<preset>/bin is three below the checkout */
+    for (int up = 0; up < 8; up++) { /* build/<preset>/bin is three below the checkout */
         (void)snprintf(found, sizeof found, "%s/.venv/bin/python", dir);
         if (access(found, X_OK) == 0) {
             return found;
@@ -253,13 +256,32 @@ static int run_scorer(const session_opts_t *o, const char *bus_label, const char
     } else {
         (void)snprintf(goal, sizeof goal, "%.6f", o->duration_s);
     }
-    char *const argv[] = {py, scorer, "--log", log, "--truth", truth, "--out", report, "--scenario", scen,
-                          "--seed", seed, "--bus", bus, "--end", end,
-                          o->cycles > 0u ? "--cycles" : "--duration-s", goal, NULL};
+    char *const argv[] = {py,
+                          scorer,
+                          "--log",
+                          log,
+                          "--truth",
+                          truth,
+                          "--out",
+                          report,
+                          "--scenario",
+                          scen,
+                          "--seed",
+                          seed,
+                          "--bus",
+                          bus,
+                          "--end",
+                          end,
+                          o->cycles > 0u ? "--cycles" : "--duration-s",
+                          goal,
+                          NULL};
     return run_child(argv);
 }
 
-static bool bus_is_inproc(const char *bus) { return strcmp(bus, "inproc") == 0 || strncmp(bus, "inproc:", 7) == 0; }
+static bool bus_is_inproc(const char *bus)
+{
+    return strcmp(bus, "inproc") == 0 || strncmp(bus, "inproc:", 7) == 0;
+}
 
 /* Runs the session of the parsed options; returns the end and the bus label. */
 static session_end_t run(session_opts_t *o, const scenario_t *sc, char *bus_label, size_t len)
@@ -298,7 +320,7 @@ static session_end_t run(session_opts_t *o, const scenario_t *sc, char *bus_labe
             return SESSION_END_ERROR;
         }
         fprintf(stderr, "microdrive-session: bus inproc (simulator and controller in this process, virtual clock)\n");
-        track.stamp_sim = true;   /* the virtual clock stands still while the controller works */
+        track.stamp_sim = true; /* the virtual clock stands still while the controller works */
         end = session_run_inproc(o, "inproc:session", &track, truth);
         (void)fclose(truth);
     } else {

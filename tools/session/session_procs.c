@@ -29,7 +29,7 @@ extern char **environ;
 /* After the goal: how long to wait for the telemetry of the cycle that reached
  * it (session_track_done_complete), wall time. */
 #define PROCS_TAIL_WAIT_US 60000000u
-#define PROCS_TERM_WAIT_MS 15000   /* a slow VM may be in the middle of a 10 s batch */
+#define PROCS_TERM_WAIT_MS 15000 /* a slow VM may be in the middle of a 10 s batch */
 /// SocketCAN (no flow control): the recorder's socket buffer. A 10 s interval
 /// is ~11 000 frames in a burst, each charged ~1 kB of buffer, and the
 /// recorder must lose none of them even on a loaded machine.
@@ -38,10 +38,10 @@ extern char **environ;
 /// length of one interval's burst loses frames (11 000 frames x ~1 kB).
 #define PROCS_BURST_BYTES (12 << 20)
 #ifndef SO_RCVBUFFORCE
-#define SO_RCVBUFFORCE 33   /* Linux; glibc hides it outside _GNU_SOURCE */
+#define SO_RCVBUFFORCE 33 /* Linux; glibc hides it outside _GNU_SOURCE */
 #endif
 
-static md_bus_t g_rec;   /* must not move while open */
+static md_bus_t g_rec; /* must not move while open */
 
 static uint64_t wall_us(void)
 {
@@ -110,8 +110,8 @@ static bool child_gone(pid_t pid, const char *name)
     if (waitpid(pid, &status, WNOHANG) != pid) {
         return false;
     }
-    fprintf(stderr, "microdrive-session: %s ended early (%s %d)\n", name,
-            WIFEXITED(status) ? "exit" : "signal", WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status));
+    fprintf(stderr, "microdrive-session: %s ended early (%s %d)\n", name, WIFEXITED(status) ? "exit" : "signal",
+            WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status));
     return true;
 }
 
@@ -203,7 +203,7 @@ static session_end_t procs_loop(const session_opts_t *o, session_track_t *t, pid
 {
     uint64_t last_activity = t->activity, activity_at = mono_us(), goal_at = 0u;
     const uint64_t idle_us = (uint64_t)(o->idle_s * 1e6);
-    for (;;) {   /* ends by the goal, idleness, a signal or a dead process */
+    for (;;) { /* ends by the goal, idleness, a signal or a dead process */
         if (record_slice(t, PROCS_SLICE_US) != 0) {
             return SESSION_END_ERROR;
         }
@@ -217,8 +217,9 @@ static session_end_t procs_loop(const session_opts_t *o, session_track_t *t, pid
             if (goal_at == 0u) {
                 goal_at = mono_us();
             } else if (mono_us() - goal_at >= PROCS_TAIL_WAIT_US) {
-                fprintf(stderr, "microdrive-session: WARNING: the controller did not move on within %u s of the "
-                                "goal: the telemetry of its last cycle may be incomplete\n",
+                fprintf(stderr,
+                        "microdrive-session: WARNING: the controller did not move on within %u s of the "
+                        "goal: the telemetry of its last cycle may be incomplete\n",
                         (unsigned)(PROCS_TAIL_WAIT_US / 1000000u));
                 return SESSION_END_GOAL;
             }
@@ -281,12 +282,15 @@ static pid_t start_m7_controller(const session_opts_t *o, const char *bus, const
         (void)snprintf(image, sizeof image, "%s/../../cortex-m7/bin/microdrive-fw-m7.elf", o->bin_dir);
     }
     if (access(image, R_OK) != 0) {
-        fprintf(stderr, "microdrive-session: no Cortex-M7 image %s (cmake --preset cortex-m7 && cmake --build "
-                        "--preset cortex-m7, or --m7-image)\n", image);
+        fprintf(stderr,
+                "microdrive-session: no Cortex-M7 image %s (cmake --preset cortex-m7 && cmake --build "
+                "--preset cortex-m7, or --m7-image)\n",
+                image);
         return -1;
     }
     (void)snprintf(qemu, sizeof qemu, "%s",
-                   o->qemu != NULL ? o->qemu : ((env_qemu != NULL && env_qemu[0] != '\0') ? env_qemu : "qemu-system-arm"));
+                   o->qemu != NULL ? o->qemu
+                                   : ((env_qemu != NULL && env_qemu[0] != '\0') ? env_qemu : "qemu-system-arm"));
     (void)snprintf(g_uart_dir, sizeof g_uart_dir, "/tmp/md-pil-XXXXXX");
     if (mkdtemp(g_uart_dir) == NULL) {
         fprintf(stderr, "microdrive-session: mkdtemp: %s\n", strerror(errno));
@@ -313,15 +317,15 @@ static pid_t start_m7_controller(const session_opts_t *o, const char *bus, const
         fprintf(stderr, "microdrive-session: the image's command line is too long\n");
         return -1;
     }
-    char *const qemu_argv[] = {qemu, "-M", "mps2-an500", "-display", "none", "-monitor", "none",
-                               "-icount", icount,
-                               "-chardev", chardev[0], "-serial", serial[0], "-chardev", chardev[1], "-serial", serial[1],
-                               "-chardev", chardev[2], "-serial", serial[2], "-chardev", chardev[3], "-serial", serial[3],
-                               "-chardev", chardev[4], "-serial", serial[4],
-                               "-semihosting-config", semi, "-kernel", image, NULL};
+    char *const qemu_argv[] = {qemu,       "-M",       "mps2-an500", "-display", "none",     "-monitor",
+                               "none",     "-icount",  icount,       "-chardev", chardev[0], "-serial",
+                               serial[0],  "-chardev", chardev[1],   "-serial",  serial[1],  "-chardev",
+                               chardev[2], "-serial",  serial[2],    "-chardev", chardev[3], "-serial",
+                               serial[3],  "-chardev", chardev[4],   "-serial",  serial[4],  "-semihosting-config",
+                               semi,       "-kernel",  image,        NULL};
     _Static_assert(M7_UARTS == 5, "qemu_argv lists five UARTs");
-    fprintf(stderr, "microdrive-session: controller: %s under %s -icount %s, UART0..4 on %s/uart*.sock\n", image,
-            qemu, icount, g_uart_dir);
+    fprintf(stderr, "microdrive-session: controller: %s under %s -icount %s, UART0..4 on %s/uart*.sock\n", image, qemu,
+            icount, g_uart_dir);
     const pid_t pid = spawn_logged(qemu_argv, fw_log);
     if (pid < 0) {
         return -1;
@@ -329,16 +333,16 @@ static pid_t start_m7_controller(const session_opts_t *o, const char *bus, const
     (void)snprintf(mdcan, sizeof mdcan, "%s/mdcan", o->bin_dir);
     (void)snprintf(bus_arg, sizeof bus_arg, "%s", bus);
     (void)snprintf(bridge_log, sizeof bridge_log, "%s/bridge.log", o->out);
-    char *const bridge_argv[] = {mdcan, "bridge", "--serial", g_uart_sock[0], "--serial", g_uart_sock[1],
-                                 "--serial", g_uart_sock[2], "--serial", g_uart_sock[3], "--serial", g_uart_sock[4],
-                                 "--bus", bus_arg, "--wait-ms", "10000", NULL};
+    char *const bridge_argv[] = {mdcan,      "bridge",       "--serial",  g_uart_sock[0], "--serial", g_uart_sock[1],
+                                 "--serial", g_uart_sock[2], "--serial",  g_uart_sock[3], "--serial", g_uart_sock[4],
+                                 "--bus",    bus_arg,        "--wait-ms", "10000",        NULL};
     *bridge = spawn_logged(bridge_argv, bridge_log);
     return pid;
 }
 
 /* The controller first; the simulator once its boot-up heartbeat is seen. */
-static session_end_t procs_start(const session_opts_t *o, session_track_t *t, const char *bus, pid_t *fw,
-                                 pid_t *bridge, pid_t *sim)
+static session_end_t procs_start(const session_opts_t *o, session_track_t *t, const char *bus, pid_t *fw, pid_t *bridge,
+                                 pid_t *sim)
 {
     static char sim_path[4096], fw_log[4096], sim_log[4096], truth[4096], seed[32];
     static char bus_arg[64], scen[4096], pace[32];
@@ -367,8 +371,8 @@ static session_end_t procs_start(const session_opts_t *o, session_track_t *t, co
         fprintf(stderr, "microdrive-session: no boot-up heartbeat of the controller (see %s)\n", fw_log);
         return SESSION_END_ERROR;
     }
-    char *const sim_argv[] = {sim_path, "--scenario", scen, "--seed", seed, "--bus", bus_arg,
-                              "--truth", truth, "--duration-s", "0", "--pace", pace, NULL};
+    char *const sim_argv[] = {sim_path,  "--scenario", scen,           "--seed", seed,     "--bus", bus_arg,
+                              "--truth", truth,        "--duration-s", "0",      "--pace", pace,    NULL};
     *sim = spawn_logged(sim_argv, sim_log);
     return (*sim < 0) ? SESSION_END_ERROR : SESSION_END_GOAL;
 }
@@ -449,7 +453,7 @@ session_end_t session_run_procs(const session_opts_t *o, session_track_t *t, cha
         }
         (void)rmdir(g_uart_dir);
     }
-    (void)record_slice(t, 200000);   /* the last frames in flight */
+    (void)record_slice(t, 200000); /* the last frames in flight */
     if (report_losses(o)) {
         fprintf(stderr, "microdrive-session: frames were lost on the bus: the report could be wrong\n");
         end = SESSION_END_ERROR;

@@ -41,8 +41,8 @@ int session_rec_open(session_rec_t *r, const char *dir, uint32_t electrodes, con
     size_t k = 0u;
     for (const char *s = scenario; s != NULL && *s != '\0' && k + 1u < sizeof r->scenario; s++) {
         const char c = *s;
-        const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-                           c == '_' || c == '-' || c == '.';
+        const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+                           c == '-' || c == '.';
         r->scenario[k++] = plain ? c : '_';
     }
     r->scenario[k] = '\0';
@@ -152,8 +152,7 @@ static void on_status(session_rec_electrode_t *el, const md_frame_t *f)
 
 void session_rec_frame(session_rec_t *r, const md_frame_t *f, uint64_t clock_us, bool clock_seen)
 {
-    if (r == NULL || !r->active || (f->flags & MD_FRAME_FLAG_EXT) != 0u || f->len < 1u ||
-        f->data[0] >= r->electrodes) {
+    if (r == NULL || !r->active || (f->flags & MD_FRAME_FLAG_EXT) != 0u || f->len < 1u || f->data[0] >= r->electrodes) {
         return;
     }
     session_rec_electrode_t *el = &r->el[f->data[0]];
@@ -166,12 +165,8 @@ void session_rec_frame(session_rec_t *r, const md_frame_t *f, uint64_t clock_us,
         }
         break;
     }
-    case MD_CAN_REC_REQ_FRAME_ID:
-        on_req(el, f, clock_us, clock_seen);
-        break;
-    case MD_CAN_REC_DATA_FRAME_ID:
-        on_data(r, el, f, clock_us);
-        break;
+    case MD_CAN_REC_REQ_FRAME_ID: on_req(el, f, clock_us, clock_seen); break;
+    case MD_CAN_REC_DATA_FRAME_ID: on_data(r, el, f, clock_us); break;
     case MD_CAN_HALL_READING_FRAME_ID: {
         struct md_can_hall_reading_t m;
         if (md_can_hall_reading_unpack(&m, f->data, f->len) == 0) {
@@ -179,14 +174,9 @@ void session_rec_frame(session_rec_t *r, const md_frame_t *f, uint64_t clock_us,
         }
         break;
     }
-    case MD_CAN_REC_END_FRAME_ID:
-        on_end(el, f);
-        break;
-    case MD_CAN_TLM_STATUS_FRAME_ID:
-        on_status(el, f);
-        break;
-    default:
-        break;
+    case MD_CAN_REC_END_FRAME_ID: on_end(el, f); break;
+    case MD_CAN_TLM_STATUS_FRAME_ID: on_status(el, f); break;
+    default: break;
     }
 }
 
@@ -310,8 +300,8 @@ int session_rec_close(session_rec_t *r, FILE *report)
             rc = -1;
             continue;
         }
-        (void)fprintf(report, "microdrive-session: recording %s (%" PRIu32 " intervals, %" PRIu64 " samples)%s\n",
-                      json, listed, el->written, el->dropped > 0u ? "; intervals past the reader's limit not saved" : "");
+        (void)fprintf(report, "microdrive-session: recording %s (%" PRIu32 " intervals, %" PRIu64 " samples)%s\n", json,
+                      listed, el->written, el->dropped > 0u ? "; intervals past the reader's limit not saved" : "");
     }
     return rc;
 }

@@ -11,8 +11,8 @@
 #include "md_protocol.h"
 #include "session.h"
 
-void session_track_init(session_track_t *t, FILE *log, const char *iface, uint32_t electrodes,
-                        session_goal_t goal, bool quiet)
+void session_track_init(session_track_t *t, FILE *log, const char *iface, uint32_t electrodes, session_goal_t goal,
+                        bool quiet)
 {
     memset(t, 0, sizeof *t);
     t->log = log;
@@ -34,8 +34,8 @@ static void track_log(session_track_t *t, const md_frame_t *f, uint64_t stamp_us
         md_bus_text_format(f, text, sizeof text) < 0) {
         return;
     }
-    (void)fprintf(t->log, "(%010" PRIu64 ".%06" PRIu64 ") %s %s\n", stamp_us / 1000000u, stamp_us % 1000000u,
-                  t->iface, text);
+    (void)fprintf(t->log, "(%010" PRIu64 ".%06" PRIu64 ") %s %s\n", stamp_us / 1000000u, stamp_us % 1000000u, t->iface,
+                  text);
 }
 
 static void track_status(session_track_t *t, const md_frame_t *f)
@@ -66,7 +66,8 @@ static void track_cycle(session_track_t *t, const md_frame_t *f)
         c.electrode >= SESSION_MAX_ELECTRODES || c.phase != 0u) {
         return;
     }
-    if (t->goal.duration_us > 0u && c.start_time_us < t->goal.duration_us && (int32_t)c.cycle > t->need_cycle[c.electrode]) {
+    if (t->goal.duration_us > 0u && c.start_time_us < t->goal.duration_us &&
+        (int32_t)c.cycle > t->need_cycle[c.electrode]) {
         t->need_cycle[c.electrode] = (int32_t)c.cycle;
     }
 }
@@ -112,19 +113,14 @@ void session_track_frame(session_track_t *t, const md_frame_t *f, uint64_t stamp
             t->fe_info_mask |= 1u << f->data[0];
         }
         break;
-    case MD_CAN_TLM_STATUS_FRAME_ID:
-        track_status(t, f);
-        break;
+    case MD_CAN_TLM_STATUS_FRAME_ID: track_status(t, f); break;
     case MD_CAN_TLM_CYCLE_FRAME_ID:
         track_cycle(t, f);
         t->moved_on = true;
         break;
     case MD_CAN_REC_REQ_FRAME_ID:
-    case MD_CAN_ACT_CMD_FRAME_ID:
-        t->moved_on = true;
-        break;
-    default:
-        break;
+    case MD_CAN_ACT_CMD_FRAME_ID: t->moved_on = true; break;
+    default: break;
     }
 }
 
@@ -160,8 +156,9 @@ bool session_track_done_complete(const session_track_t *t)
 
 void session_track_summary(const session_track_t *t, FILE *out)
 {
-    (void)fprintf(out, "microdrive-session: %" PRIu64 " frames, simulated time %.3f s, cycles per electrode:",
-                  t->frames, (double)t->sim_clock_us * 1e-6);
+    (void)fprintf(out,
+                  "microdrive-session: %" PRIu64 " frames, simulated time %.3f s, cycles per electrode:", t->frames,
+                  (double)t->sim_clock_us * 1e-6);
     for (uint32_t e = 0; e < t->electrodes; e++) {
         (void)fprintf(out, " e%u=%u", (unsigned)e, (unsigned)t->status_count[e]);
     }
@@ -171,14 +168,10 @@ void session_track_summary(const session_track_t *t, FILE *out)
 const char *session_end_name(session_end_t e)
 {
     switch (e) {
-    case SESSION_END_GOAL:
-        return "goal reached";
-    case SESSION_END_IDLE:
-        return "idle (no plant or telemetry frame for --idle-s)";
-    case SESSION_END_SIGNAL:
-        return "signal";
+    case SESSION_END_GOAL: return "goal reached";
+    case SESSION_END_IDLE: return "idle (no plant or telemetry frame for --idle-s)";
+    case SESSION_END_SIGNAL: return "signal";
     case SESSION_END_ERROR:
-    default:
-        return "error";
+    default: return "error";
     }
 }

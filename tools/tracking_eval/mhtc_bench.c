@@ -128,10 +128,11 @@ int main(int argc, char **argv)
         }
     }
     qsort(g_ms, steps, sizeof g_ms[0], b_cmp);
-    printf("L %zu, EM tol %g, steps %zu, evidence %s: median %.2f ms, min %.2f ms, max %.2f ms; model hypotheses per step %.1f; "
+    printf("L %zu, EM tol %g, steps %zu, evidence %s: median %.2f ms, min %.2f ms, max %.2f ms; model hypotheses per "
+           "step %.1f; "
            "hypotheses %zu, tracks (leading) %zu\n",
-           cfg.L, cfg.em.tol, steps, bic ? "BIC" : "Laplace", g_ms[steps / 2u], g_ms[0], g_ms[steps - 1u], (double)models / (double)steps,
-           g_out.n_hyp, g_out.n_tracks);
+           cfg.L, cfg.em.tol, steps, bic ? "BIC" : "Laplace", g_ms[steps / 2u], g_ms[0], g_ms[steps - 1u],
+           (double)models / (double)steps, g_out.n_hyp, g_out.n_tracks);
     printf("sizeof: mhtc_state_t %zu B (per electrode), mhtc_track_t %zu B x %u, kf_state_t %zu B, "
            "mhtc_hyp_t %zu B x %u, mhtc_workspace_t %zu B (shared)\n",
            sizeof(mhtc_state_t), sizeof(mhtc_track_t), (unsigned)MHTC_POOL, sizeof(kf_state_t), sizeof(mhtc_hyp_t),

@@ -23,11 +23,10 @@ void cluster_config_default(cluster_config_t *cfg, cluster_method_t method)
     cfg->unimodal_ratio = 0.0;
 }
 
-md_status_t cluster_model_prior_forget(const double *prev, size_t m_count, double alpha,
-                                       double *prior)
+md_status_t cluster_model_prior_forget(const double *prev, size_t m_count, double alpha, double *prior)
 {
-    if ((prev == NULL) || (prior == NULL) || (m_count == 0u) || (m_count > EM_G_MAX) ||
-        !(alpha >= 0.0) || (alpha > 1.0)) {
+    if ((prev == NULL) || (prior == NULL) || (m_count == 0u) || (m_count > EM_G_MAX) || !(alpha >= 0.0) ||
+        (alpha > 1.0)) {
         return MD_E_ARG;
     }
     double sum = 0.0;
@@ -46,27 +45,24 @@ md_status_t cluster_model_prior_forget(const double *prev, size_t m_count, doubl
     return MD_OK;
 }
 
-static bool cluster_args_ok(const cluster_config_t *cfg, const cluster_input_t *in,
-                            const cluster_workspace_t *ws, const cluster_result_t *out)
+static bool cluster_args_ok(const cluster_config_t *cfg, const cluster_input_t *in, const cluster_workspace_t *ws,
+                            const cluster_result_t *out)
 {
     if ((cfg == NULL) || (in == NULL) || (ws == NULL) || (out == NULL)) {
         return false;
     }
     const bool method_ok = (cfg->method == CLUSTER_MAP) || (cfg->method == CLUSTER_ML);
-    const bool ev_ok = (cfg->evidence == CLUSTER_EVIDENCE_LAPLACE) ||
-                       (cfg->evidence == CLUSTER_EVIDENCE_BIC);
+    const bool ev_ok = (cfg->evidence == CLUSTER_EVIDENCE_LAPLACE) || (cfg->evidence == CLUSTER_EVIDENCE_BIC);
     return method_ok && ev_ok && (cfg->g_max >= 1u) && (cfg->g_max <= EM_G_MAX) &&
            (cfg->lambda_new + cfg->lambda_false > 0.0) && (cfg->shape_prior_width > 0.0) &&
-           (cfg->unimodal_ratio >= 0.0) && (cfg->unimodal_ratio <= 1.0) &&
-           (in->data.y != NULL) && (in->data.d >= 1u) && (in->data.d <= EM_D_MAX) &&
-           (in->data.n <= EM_N_MAX) && (in->noise_cov != NULL) && (in->n_targets <= EM_J_MAX) &&
-           ((in->targets != NULL) || (in->n_targets == 0u)) &&
+           (cfg->unimodal_ratio >= 0.0) && (cfg->unimodal_ratio <= 1.0) && (in->data.y != NULL) && (in->data.d >= 1u) &&
+           (in->data.d <= EM_D_MAX) && (in->data.n <= EM_N_MAX) && (in->noise_cov != NULL) &&
+           (in->n_targets <= EM_J_MAX) && ((in->targets != NULL) || (in->n_targets == 0u)) &&
            linalg_all_finite(in->data.y, in->data.n * in->data.d);
 }
 
 /* Marks every model class failed with one reason (input-level failures). */
-static md_status_t cluster_fail_all(cluster_result_t *out, size_t g_max, md_status_t st,
-                                    em_reason_t reason)
+static md_status_t cluster_fail_all(cluster_result_t *out, size_t g_max, md_status_t st, em_reason_t reason)
 {
     for (size_t g = 0u; g < EM_G_MAX; ++g) {
         out->model[g].fit.status = (g < g_max) ? st : MD_E_ARG;
@@ -76,8 +72,8 @@ static md_status_t cluster_fail_all(cluster_result_t *out, size_t g_max, md_stat
 }
 
 /* Outlier density, mean prior and (ML) the Ward dendrogram: shared by all G. */
-static md_status_t cluster_prepare(const cluster_config_t *cfg, const cluster_input_t *in,
-                                   cluster_workspace_t *ws, cluster_result_t *out)
+static md_status_t cluster_prepare(const cluster_config_t *cfg, const cluster_input_t *in, cluster_workspace_t *ws,
+                                   cluster_result_t *out)
 {
     double volume = 0.0;
     if (in->data.n == 0u) {
@@ -91,8 +87,8 @@ static md_status_t cluster_prepare(const cluster_config_t *cfg, const cluster_in
         return cluster_fail_all(out, cfg->g_max, MD_E_NUMERIC, EM_FAIL_NOISE_COV);
     }
     const size_t j = (cfg->method == CLUSTER_MAP) ? in->n_targets : 0u;
-    const md_status_t st = em_prior_init(in->data.d, in->targets, j,
-                                         cfg->lambda_new + cfg->lambda_false, volume, &ws->prior);
+    const md_status_t st = em_prior_init(in->data.d, in->targets, j, cfg->lambda_new + cfg->lambda_false, volume,
+                                         &ws->prior);
     if (st != MD_OK) {
         return cluster_fail_all(out, cfg->g_max, st, (st == MD_E_ARG) ? EM_FAIL_ARG : EM_FAIL_NUMERIC);
     }
@@ -111,8 +107,8 @@ static md_status_t cluster_seed(const cluster_config_t *cfg, const cluster_input
     return em_seed_from_targets(&in->data, in->targets, in->n_targets, g, &ws->seed_ws, ws->seed);
 }
 
-static void cluster_evidence(const cluster_config_t *cfg, const cluster_input_t *in,
-                             cluster_workspace_t *ws, cluster_model_t *m)
+static void cluster_evidence(const cluster_config_t *cfg, const cluster_input_t *in, cluster_workspace_t *ws,
+                             cluster_model_t *m)
 {
     const em_params_t *p = &m->fit.params;
     if (cfg->evidence == CLUSTER_EVIDENCE_BIC) {
@@ -120,8 +116,8 @@ static void cluster_evidence(const cluster_config_t *cfg, const cluster_input_t 
         m->usable = isfinite(m->log_evidence);
         return;
     }
-    const md_status_t st = em_evidence_laplace(&in->data, &ws->outlier, &ws->prior, p,
-                                               cfg->shape_prior_width, &ws->ev, &m->log_evidence);
+    const md_status_t st = em_evidence_laplace(&in->data, &ws->outlier, &ws->prior, p, cfg->shape_prior_width, &ws->ev,
+                                               &m->log_evidence);
     m->usable = (st == MD_OK);
     if (!m->usable) {
         m->log_evidence = 0.0;
@@ -130,8 +126,8 @@ static void cluster_evidence(const cluster_config_t *cfg, const cluster_input_t 
     }
 }
 
-static void cluster_fit_one(const cluster_config_t *cfg, const cluster_input_t *in, size_t g,
-                            cluster_workspace_t *ws, cluster_model_t *m)
+static void cluster_fit_one(const cluster_config_t *cfg, const cluster_input_t *in, size_t g, cluster_workspace_t *ws,
+                            cluster_model_t *m)
 {
     const md_status_t st = cluster_seed(cfg, in, g, ws);
     if (st != MD_OK) {
@@ -139,8 +135,7 @@ static void cluster_fit_one(const cluster_config_t *cfg, const cluster_input_t *
         m->fit.reason = (st == MD_E_NUMERIC) ? EM_FAIL_NUMERIC : EM_FAIL_SEED;
         return;
     }
-    const md_status_t fs = em_fit(&in->data, &ws->outlier, &ws->prior, ws->seed, g, &cfg->em,
-                                  ws->z, &m->fit);
+    const md_status_t fs = em_fit(&in->data, &ws->outlier, &ws->prior, ws->seed, g, &cfg->em, ws->z, &m->fit);
     if ((fs != MD_OK) && (fs != MD_E_NOCONVERGE)) {
         return;
     }
@@ -182,8 +177,8 @@ static void cluster_posterior(const cluster_input_t *in, cluster_result_t *out)
     }
 }
 
-md_status_t cluster_fit_models(const cluster_config_t *cfg, const cluster_input_t *in,
-                               cluster_workspace_t *ws, cluster_result_t *out)
+md_status_t cluster_fit_models(const cluster_config_t *cfg, const cluster_input_t *in, cluster_workspace_t *ws,
+                               cluster_result_t *out)
 {
     if (out == NULL) {
         return MD_E_ARG;

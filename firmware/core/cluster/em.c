@@ -8,7 +8,7 @@
 #include "common/linalg.h"
 #include "common/md_exp.h"
 
-#define EM_PI0_INIT 0.05   /* initial outlier weight of a seed */
+#define EM_PI0_INIT 0.05     /* initial outlier weight of a seed */
 #define EM_LOG_TINY (-700.0) /* log of a weight that is numerically zero */
 
 /* Per-component factors of Σ_g = λ C_g used by the E-step and eq. 3.15. */
@@ -17,7 +17,7 @@ typedef struct {
     double linv[EM_G_MAX][EM_D_MAX * EM_D_MAX]; /* L^{-1}, lower triangular */
     double inv[EM_G_MAX][EM_D_MAX * EM_D_MAX];
     double logdet[EM_G_MAX];
-    double log_norm[EM_G_MAX];                  /* -½ (d log 2π + log det Σ_g) of eq. 3.1 */
+    double log_norm[EM_G_MAX]; /* -½ (d log 2π + log det Σ_g) of eq. 3.1 */
 } em_cache_t;
 
 #define EM_LOG_2PI 1.8378770664093454836
@@ -130,9 +130,8 @@ typedef struct {
  * log-term hi and sets *sum so that log p(y_i|Θ) = hi + log(*sum), *sum in [1, G + 1].
  * lw: log π_0, then log π_g - ½(d log 2π + log det Σ_g) for g ≥ 1.
  * Inline with a literal d = 2 below, so the d-loops unroll for the controller's case. */
-static inline double em_estep_point(const double *y, size_t d, double lf0, const double *lw,
-                                    const em_params_t *p, const em_cache_t *c, double *zi,
-                                    em_moments_t *mom, double *sum_out)
+static inline double em_estep_point(const double *y, size_t d, double lf0, const double *lw, const em_params_t *p,
+                                    const em_cache_t *c, double *zi, em_moments_t *mom, double *sum_out)
 {
     const size_t k = p->g + 1u;
     zi[0] = lw[0] + lf0;
@@ -164,8 +163,8 @@ static inline double em_estep_point(const double *y, size_t d, double lf0, const
 /* E-step: z_ig (after eq. 3.13) in the log domain; returns log p(Y|Θ) (eq. 3.5).
  * One log-sum-exp per point about its largest term (G + 1 exp per point, one log
  * per pass); the log-weights and Gaussian normalisers are taken once per iteration. */
-static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
-                       const em_cache_t *c, double *z, em_moments_t *mom)
+static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p, const em_cache_t *c,
+                       double *z, em_moments_t *mom)
 {
     memset(mom, 0, sizeof *mom);
     const size_t k = p->g + 1u;
@@ -197,8 +196,8 @@ static double em_estep(const em_data_t *data, const em_outlier_t *outlier, const
 }
 
 /* eq. 3.15: MAP mean with Σ_g^{-1} of the previous iteration (Remark 3.6). */
-static md_status_t em_map_mean(const em_prior_t *prior, const double *sigma_inv, double n_g,
-                               const double *sum, const double *zeta, double *mean)
+static md_status_t em_map_mean(const em_prior_t *prior, const double *sigma_inv, double n_g, const double *sum,
+                               const double *zeta, double *mean)
 {
     const size_t d = prior->d;
     double a[EM_D_MAX * EM_D_MAX];
@@ -252,8 +251,7 @@ static inline void em_scatter_d(const em_data_t *data, size_t d, const double *z
 }
 
 /* W_g with a literal d = 2 for the controller's case (the loops unroll). */
-static void em_scatter(const em_data_t *data, const double *z, size_t k, size_t col, const double *mean,
-                       double *w)
+static void em_scatter(const em_data_t *data, const double *z, size_t k, size_t col, const double *mean, double *w)
 {
     if (data->d == 2u) {
         em_scatter_d(data, 2u, z, k, col, mean, w);
@@ -279,8 +277,7 @@ static double em_det_root(const double *w, size_t d)
 }
 
 /* §3.3.3.2 shared-volume covariance from the scatters W_g of the new means. */
-static em_reason_t em_shared_volume(const em_data_t *data, const double *z, const double *n_soft,
-                                    em_params_t *p)
+static em_reason_t em_shared_volume(const em_data_t *data, const double *z, const double *n_soft, em_params_t *p)
 {
     const size_t d = data->d;
     const size_t k = p->g + 1u;
@@ -304,9 +301,8 @@ static em_reason_t em_shared_volume(const em_data_t *data, const double *z, cons
 }
 
 /* M-step of §3.3.3.2; zeta holds ζ at the current means, c the previous Σ. */
-static em_reason_t em_mstep(const em_data_t *data, const em_prior_t *prior, const double *z,
-                            const em_moments_t *mom, const em_cache_t *c,
-                            double zeta[][EM_J_MAX + 1u], em_params_t *p)
+static em_reason_t em_mstep(const em_data_t *data, const em_prior_t *prior, const double *z, const em_moments_t *mom,
+                            const em_cache_t *c, double zeta[][EM_J_MAX + 1u], em_params_t *p)
 {
     const double *n_soft = mom->n_soft;
     const double n = (double)data->n;
@@ -324,8 +320,7 @@ static em_reason_t em_mstep(const em_data_t *data, const em_prior_t *prior, cons
 }
 
 /* Initial Θ from a hard partition: centroids, one pooled shape, π_0 = EM_PI0_INIT. */
-static em_reason_t em_init_params(const em_data_t *data, const uint8_t *labels, size_t g_count,
-                                  em_params_t *p)
+static em_reason_t em_init_params(const em_data_t *data, const uint8_t *labels, size_t g_count, em_params_t *p)
 {
     const size_t d = data->d;
     double count[EM_G_MAX] = {0.0};
@@ -375,20 +370,17 @@ static em_reason_t em_init_params(const em_data_t *data, const uint8_t *labels, 
     return EM_OK;
 }
 
-static bool em_fit_args_ok(const em_data_t *data, const em_outlier_t *outlier,
-                           const em_prior_t *prior, size_t g, const em_options_t *opt, const double *z)
+static bool em_fit_args_ok(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior, size_t g,
+                           const em_options_t *opt, const double *z)
 {
-    return (data != NULL) && (data->y != NULL) && (outlier != NULL) && (prior != NULL) &&
-           (opt != NULL) && (z != NULL) && (data->d >= 1u) &&
-           (data->d <= EM_D_MAX) && (data->n <= EM_N_MAX) && (g >= 1u) && (g <= EM_G_MAX) &&
-           (outlier->d == data->d) && (prior->d == data->d) && (opt->max_iter >= 1u) &&
-           (opt->max_iter <= MD_EM_MAX_ITER) && (opt->tol > 0.0) &&
-           linalg_all_finite(data->y, data->n * data->d);
+    return (data != NULL) && (data->y != NULL) && (outlier != NULL) && (prior != NULL) && (opt != NULL) &&
+           (z != NULL) && (data->d >= 1u) && (data->d <= EM_D_MAX) && (data->n <= EM_N_MAX) && (g >= 1u) &&
+           (g <= EM_G_MAX) && (outlier->d == data->d) && (prior->d == data->d) && (opt->max_iter >= 1u) &&
+           (opt->max_iter <= MD_EM_MAX_ITER) && (opt->tol > 0.0) && linalg_all_finite(data->y, data->n * data->d);
 }
 
 /* log-posterior of eq. 3.4 (without C) and ζ at the current means. */
-static double em_log_post(const em_prior_t *prior, const em_params_t *p, double loglik,
-                          double zeta[][EM_J_MAX + 1u])
+static double em_log_post(const em_prior_t *prior, const em_params_t *p, double loglik, double zeta[][EM_J_MAX + 1u])
 {
     double lp = loglik;
     for (size_t g = 0u; g < p->g; ++g) {
@@ -520,8 +512,7 @@ static bool em_sq_extrapolate(double *t0, const double *r, const double *t2, siz
 
 /* Cache, E-step and log-posterior of eq. 3.4 at p; false if Σ_g is not SPD or a figure is not finite. */
 static bool em_evaluate(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
-                        const em_params_t *p, em_cache_t *cache, double *z, em_moments_t *mom,
-                        em_fit_t *out)
+                        const em_params_t *p, em_cache_t *cache, double *z, em_moments_t *mom, em_fit_t *out)
 {
     if (em_build_cache(p, cache) != MD_OK) {
         return false;
@@ -556,8 +547,7 @@ typedef struct {
 
 /* One M-step and the E-step at the new Θ; false ends the fit (converged, bound, failure in *r). */
 static bool em_plain_step(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
-                          const em_options_t *opt, double *z, em_run_t *s, em_fit_t *out,
-                          em_reason_t *r)
+                          const em_options_t *opt, double *z, em_run_t *s, em_fit_t *out, em_reason_t *r)
 {
     const double lp_prev = out->log_post;
     *r = em_mstep(data, prior, z, &s->mom, &s->cache, out->zeta, &out->params);
@@ -576,8 +566,7 @@ static bool em_plain_step(const em_data_t *data, const em_outlier_t *outlier, co
 
 /* Two EM steps and one S3 extrapolation, kept only if the log-posterior did not decrease. */
 static bool em_squarem_cycle(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
-                             const em_options_t *opt, double *z, em_run_t *s, em_fit_t *out,
-                             em_reason_t *r)
+                             const em_options_t *opt, double *z, em_run_t *s, em_fit_t *out, em_reason_t *r)
 {
     size_t len = 0u;
     const bool packed0 = em_sq_pack(&out->params, s->t0, &len);
@@ -600,8 +589,8 @@ static bool em_squarem_cycle(const em_data_t *data, const em_outlier_t *outlier,
     const double lp2 = out->log_post;
     s->p2 = out->params;
     if (em_sq_unpack(s->t0, &out->params) &&
-        em_evaluate(data, outlier, prior, &out->params, &s->cache, z, &s->mom, out) &&
-        (out->log_post >= lp2) && em_counts_ok(&s->mom, out->params.g, data->d)) {
+        em_evaluate(data, outlier, prior, &out->params, &s->cache, z, &s->mom, out) && (out->log_post >= lp2) &&
+        em_counts_ok(&s->mom, out->params.g, data->d)) {
         return true;
     }
     out->params = s->p2; /* rejected: EM goes on from θ2 */
@@ -616,8 +605,7 @@ static bool em_squarem_cycle(const em_data_t *data, const em_outlier_t *outlier,
  * into g groups, or (seed_labels NULL) from the Θ in out->params. One frame for the
  * initialisation and the iteration: the stack bound is the larger of the two, not the sum. */
 static md_status_t em_run(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
-                          const em_options_t *opt, double *z, const uint8_t *seed_labels, size_t g,
-                          em_fit_t *out)
+                          const em_options_t *opt, double *z, const uint8_t *seed_labels, size_t g, em_fit_t *out)
 {
     em_reason_t r = (seed_labels != NULL) ? em_init_params(data, seed_labels, g, &out->params) : EM_OK;
     em_run_t s;
@@ -648,8 +636,7 @@ static md_status_t em_run(const em_data_t *data, const em_outlier_t *outlier, co
 }
 
 md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
-                   const uint8_t *seed_labels, size_t g, const em_options_t *opt, double *z,
-                   em_fit_t *out)
+                   const uint8_t *seed_labels, size_t g, const em_options_t *opt, double *z, em_fit_t *out)
 {
     if (out == NULL) {
         return MD_E_ARG;

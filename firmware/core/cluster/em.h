@@ -25,9 +25,9 @@
 
 /// Iteration controls.
 typedef struct {
-    uint32_t max_iter; ///< 1..MD_EM_MAX_ITER
-    double tol;        ///< stop when |Δ log-posterior| ≤ tol · max(1, |log-posterior|)
-    bool accelerate;   ///< SQUAREM extrapolation between EM steps (same fixed point, fewer iterations)
+    uint32_t max_iter;  ///< 1..MD_EM_MAX_ITER
+    double tol;         ///< stop when |Δ log-posterior| ≤ tol · max(1, |log-posterior|)
+    bool accelerate;    ///< SQUAREM extrapolation between EM steps (same fixed point, fewer iterations)
 } em_options_t;
 
 /// Defaults: max_iter = MD_EM_MAX_ITER, tol = MD_EM_TOL_REL (md_config.h),
@@ -36,14 +36,14 @@ void em_options_default(em_options_t *opt);
 
 /// Result of one fit of one model class.
 typedef struct {
-    md_status_t status;                     ///< MD_OK, MD_E_NOCONVERGE (usable), or a failure
-    em_reason_t reason;                     ///< EM_OK or why it failed
-    em_params_t params;                     ///< Θ̂ (valid when status is MD_OK or MD_E_NOCONVERGE)
-    double n_soft[EM_G_MAX + 1u];           ///< n_g = Σ_i z_ig, g = 0..G
-    double zeta[EM_G_MAX][EM_J_MAX + 1u];   ///< ζ_gj, j = 0 (uniform) .. J (eq. 3.14)
-    double log_lik;                         ///< log p(Y | Θ̂) (eq. 3.5)
-    double log_post;                        ///< log_lik + Σ_g log p(μ̂_g) (eq. 3.4 without the constant C of eq. 3.10)
-    uint32_t iterations;                    ///< M-steps taken
+    md_status_t status;                    ///< MD_OK, MD_E_NOCONVERGE (usable), or a failure
+    em_reason_t reason;                    ///< EM_OK or why it failed
+    em_params_t params;                    ///< Θ̂ (valid when status is MD_OK or MD_E_NOCONVERGE)
+    double n_soft[EM_G_MAX + 1u];          ///< n_g = Σ_i z_ig, g = 0..G
+    double zeta[EM_G_MAX][EM_J_MAX + 1u];  ///< ζ_gj, j = 0 (uniform) .. J (eq. 3.14)
+    double log_lik;                        ///< log p(Y | Θ̂) (eq. 3.5)
+    double log_post;      ///< log_lik + Σ_g log p(μ̂_g) (eq. 3.4 without the constant C of eq. 3.10)
+    uint32_t iterations;  ///< M-steps taken
 } em_fit_t;
 
 /// Fits one model class with G = g clusters, seeded by a hard partition.
@@ -60,8 +60,7 @@ typedef struct {
 /// MD_E_NUMERIC, MD_E_NOCONVERGE (parameters still usable). Never NaN.
 /// O(max_iter · n · g · d^2).
 md_status_t em_fit(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
-                   const uint8_t *seed_labels, size_t g, const em_options_t *opt, double *z,
-                   em_fit_t *out);
+                   const uint8_t *seed_labels, size_t g, const em_options_t *opt, double *z, em_fit_t *out);
 
 /// The same iteration as em_fit, started from a given Θ instead of a hard
 /// partition: a converged fit of the same model class under a similar prior

@@ -121,8 +121,7 @@ static md_status_t em_shape_last(size_t d, const double *x, em_shape_t *s, doubl
     }
     for (size_t t = 0u; t < nc; ++t) {
         for (size_t u = 0u; u < nc; ++u) {
-            s->f_ts[t][u] =
-                (-h[1][t][u] - ft[t] * g[0][u] - ft[u] * g[0][t] - f * h[0][t][u]) / mr[0];
+            s->f_ts[t][u] = (-h[1][t][u] - ft[t] * g[0][u] - ft[u] * g[0][t] - f * h[0][t][u]) / mr[0];
         }
     }
     s->c[d * d - 1u] = f;
@@ -158,8 +157,7 @@ static md_status_t em_shape_build(size_t d, const double *x, em_shape_t *s)
 
 md_status_t em_theta_pack(const em_params_t *p, double *theta)
 {
-    if ((p == NULL) || (theta == NULL) || (p->d == 0u) || (p->d > EM_D_MAX) || (p->g == 0u) ||
-        (p->g > EM_G_MAX)) {
+    if ((p == NULL) || (theta == NULL) || (p->d == 0u) || (p->d > EM_D_MAX) || (p->g == 0u) || (p->g > EM_G_MAX)) {
         return MD_E_ARG;
     }
     const size_t d = p->d;
@@ -182,8 +180,8 @@ md_status_t em_theta_pack(const em_params_t *p, double *theta)
 
 md_status_t em_theta_unpack(const double *theta, size_t d, size_t g, em_params_t *p)
 {
-    if ((theta == NULL) || (p == NULL) || (d == 0u) || (d > EM_D_MAX) || (g == 0u) ||
-        (g > EM_G_MAX) || !linalg_all_finite(theta, em_param_count(d, g))) {
+    if ((theta == NULL) || (p == NULL) || (d == 0u) || (d > EM_D_MAX) || (g == 0u) || (g > EM_G_MAX) ||
+        !linalg_all_finite(theta, em_param_count(d, g))) {
         return MD_E_ARG;
     }
     memset(p, 0, sizeof *p);
@@ -208,8 +206,7 @@ md_status_t em_theta_unpack(const double *theta, size_t d, size_t g, em_params_t
 }
 
 /* Σ_ts for covariance parameters t, s (index nc = λ). */
-static void em_sigma_ts(const em_shape_t *sh, size_t d, double lambda, size_t t, size_t s,
-                        double *out)
+static void em_sigma_ts(const em_shape_t *sh, size_t d, double lambda, size_t t, size_t s, double *out)
 {
     const size_t nc = em_nc(d);
     memset(out, 0, d * d * sizeof(double));
@@ -230,8 +227,8 @@ static double em_trace(const double *a, size_t d)
 }
 
 /* First-order tables: Σ, Σ^{-1}, N_t = Σ^{-1}Σ_tΣ^{-1}, tr(Σ^{-1}Σ_t). */
-static md_status_t em_comp_first(const em_shape_t *sh, size_t d, double lambda,
-                                 double sig_t[][EM_D_MAX * EM_D_MAX], em_comp_deriv_t *cd)
+static md_status_t em_comp_first(const em_shape_t *sh, size_t d, double lambda, double sig_t[][EM_D_MAX * EM_D_MAX],
+                                 em_comp_deriv_t *cd)
 {
     const size_t np = em_nc(d) + 1u;
     double sigma[EM_D_MAX * EM_D_MAX];
@@ -241,8 +238,7 @@ static md_status_t em_comp_first(const em_shape_t *sh, size_t d, double lambda,
     }
     /* cppcheck-suppress uninitvar ; the loop above set the d x d elements copied */
     memcpy(cd->chol, sigma, d * d * sizeof sigma[0]); /* only the d x d part is set */
-    if ((linalg_cholesky(cd->chol, d) != MD_OK) ||
-        (linalg_spd_inverse(sigma, d, cd->sigma_inv, work, NULL) != MD_OK)) {
+    if ((linalg_cholesky(cd->chol, d) != MD_OK) || (linalg_spd_inverse(sigma, d, cd->sigma_inv, work, NULL) != MD_OK)) {
         return MD_E_NUMERIC;
     }
     cd->logdet = linalg_cholesky_logdet(cd->chol, d);
@@ -290,13 +286,12 @@ static md_status_t em_comp_prepare(const em_params_t *p, size_t g, em_comp_deriv
                 return MD_E_ARG;
             }
             cd->k_ts[t][s] = 0.5 * (em_trace(m, d) - em_trace(b, d));
-            if (linalg_matmul(b, cd->sigma_inv, m, d, d, d) != MD_OK) {       /* Σ^{-1}Σ_tsΣ^{-1} */
+            if (linalg_matmul(b, cd->sigma_inv, m, d, d, d) != MD_OK) { /* Σ^{-1}Σ_tsΣ^{-1} */
                 return MD_E_ARG;
             }
             for (size_t r = 0u; r < d; ++r) {
                 for (size_t c = 0u; c < d; ++c) {
-                    cd->q_ts[t][s][r * d + c] =
-                        0.5 * m[r * d + c] - 0.5 * (a[r * d + c] + a[c * d + r]);
+                    cd->q_ts[t][s][r * d + c] = 0.5 * m[r * d + c] - 0.5 * (a[r * d + c] + a[c * d + r]);
                 }
             }
         }
@@ -355,33 +350,31 @@ static void em_sym_add(double *h, size_t eta, size_t a, size_t b, double v)
 /* S_i = ∇∇P / P for one cluster (eq. B.18 last term and B.2.2), a = Φ/P, q = πΦ/P.
  * Only the upper triangle of H is meant (the symmetric blocks are summed for
  * column ≥ row; em_log_post_derivs mirrors it once after the point loop). */
-static inline void em_point_curvature(const em_params_t *p, size_t d, const em_comp_deriv_t *cd,
-                                      const em_point_t *pt, size_t g, double a, double q, double *h)
+static inline void em_point_curvature(const em_params_t *p, size_t d, const em_comp_deriv_t *cd, const em_point_t *pt,
+                                      size_t g, double a, double q, double *h)
 {
     const size_t np = em_nc(d) + 1u;
     const size_t eta = em_param_count(d, p->g);
     const size_t ip = g * (1u + d + np - 1u);
     for (size_t j = 0u; j < d; ++j) {
-        em_sym_add(h, eta, ip, ip + 1u + j, a * pt->sr[j]);             /* means – weights */
-        for (size_t k = j; k < d; ++k) {                                 /* means – means (upper) */
-            h[(ip + 1u + j) * eta + ip + 1u + k] +=
-                q * (pt->sr[j] * pt->sr[k] - cd->sigma_inv[j * d + k]);
+        em_sym_add(h, eta, ip, ip + 1u + j, a * pt->sr[j]); /* means – weights */
+        for (size_t k = j; k < d; ++k) {                    /* means – means (upper) */
+            h[(ip + 1u + j) * eta + ip + 1u + k] += q * (pt->sr[j] * pt->sr[k] - cd->sigma_inv[j * d + k]);
         }
-        for (size_t t = 0u; t < np; ++t) {                               /* means – (co)variances, volume */
+        for (size_t t = 0u; t < np; ++t) { /* means – (co)variances, volume */
             double ntr = 0.0;
             for (size_t k = 0u; k < d; ++k) {
                 ntr += cd->n_t[t][j * d + k] * pt->r[k];
             }
-            em_sym_add(h, eta, ip + 1u + j, em_cov_index(d, p->g, g, t),
-                       q * (pt->sr[j] * pt->dt[t] - ntr));
+            em_sym_add(h, eta, ip + 1u + j, em_cov_index(d, p->g, g, t), q * (pt->sr[j] * pt->dt[t] - ntr));
         }
     }
     for (size_t t = 0u; t < np; ++t) {
         const size_t it = em_cov_index(d, p->g, g, t);
-        em_sym_add(h, eta, ip, it, a * pt->dt[t]);                       /* (co)variances, volume – weights */
-        for (size_t s = t; s < np; ++s) {                               /* (co)variances, volume pairs (upper) */
-            h[it * eta + em_cov_index(d, p->g, g, s)] +=
-                q * (pt->dt[t] * pt->dt[s] + cd->k_ts[t][s] + em_quad(cd->q_ts[t][s], pt->r, d));
+        em_sym_add(h, eta, ip, it, a * pt->dt[t]); /* (co)variances, volume – weights */
+        for (size_t s = t; s < np; ++s) {          /* (co)variances, volume pairs (upper) */
+            h[it * eta + em_cov_index(d, p->g, g, s)] += q * (pt->dt[t] * pt->dt[s] + cd->k_ts[t][s] +
+                                                              em_quad(cd->q_ts[t][s], pt->r, d));
         }
     }
 }
@@ -457,8 +450,7 @@ static double em_prior_derivs(const em_prior_t *prior, const double *mu, double 
     return lp;
 }
 
-static double em_add_prior(const em_prior_t *prior, const em_params_t *p, double *grad,
-                           double *hess)
+static double em_add_prior(const em_prior_t *prior, const em_params_t *p, double *grad, double *hess)
 {
     const size_t d = p->d;
     const size_t eta = em_param_count(d, p->g);
@@ -488,17 +480,16 @@ static bool em_data_args_ok(const em_data_t *data, const em_outlier_t *outlier, 
            (data->n <= EM_N_MAX) && (outlier->d == p->d) && (p->lambda > 0.0);
 }
 
-static bool em_derivs_args_ok(const em_data_t *data, const em_outlier_t *outlier,
-                              const em_prior_t *prior, const em_params_t *p,
-                              const em_evidence_work_t *ws)
+static bool em_derivs_args_ok(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                              const em_params_t *p, const em_evidence_work_t *ws)
 {
     return em_data_args_ok(data, outlier, p, ws) && (prior != NULL) && (prior->d == p->d);
 }
 
 /* One point's l_i, its gradient u and its Hessian terms (eq. B.17, B.18), added to grad/hess.
  * The general-d loop (d = 2 with a Hessian takes em_d2_points). */
-static double em_point_add(const em_params_t *p, size_t d, double lf0, const double *log_pi,
-                                  const double *y, double *grad, double *hess, em_evidence_work_t *ws)
+static double em_point_add(const em_params_t *p, size_t d, double lf0, const double *log_pi, const double *y,
+                           double *grad, double *hess, em_evidence_work_t *ws)
 {
     const size_t eta = em_param_count(d, p->g);
     em_point_t pt[EM_G_MAX];
@@ -572,9 +563,9 @@ static md_status_t em_data_derivs(const em_data_t *data, const em_outlier_t *out
     return ok ? MD_OK : MD_E_NUMERIC;
 }
 
-md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlier,
-                               const em_prior_t *prior, const em_params_t *p, double *log_post,
-                               double *grad, double *hess, em_evidence_work_t *ws)
+md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                               const em_params_t *p, double *log_post, double *grad, double *hess,
+                               em_evidence_work_t *ws)
 {
     if (!em_derivs_args_ok(data, outlier, prior, p, ws) || (log_post == NULL)) {
         return MD_E_ARG;
@@ -626,8 +617,8 @@ static double em_h_entry(const em_evidence_work_t *ws, size_t eta, const em_para
 }
 
 /* H' = J^T H J for θ = J q: π_G = -Σ_{g<G} π_g (+ const), other coordinates kept. */
-static double em_reduced_entry(const em_evidence_work_t *ws, size_t eta, const em_params_t *p, size_t ig,
-                               size_t a, size_t b)
+static double em_reduced_entry(const em_evidence_work_t *ws, size_t eta, const em_params_t *p, size_t ig, size_t a,
+                               size_t b)
 {
     const size_t blk = em_param_count(p->d, p->g) / p->g;
     const size_t oa = em_old_index(a, ig);
@@ -643,8 +634,7 @@ static double em_reduced_entry(const em_evidence_work_t *ws, size_t eta, const e
 
 /* log det of the SPD matrix -H (or of its reduced form when ig < eta), via
  * diagonal scaling so the Cholesky pivot test is unit-free. */
-static md_status_t em_neg_logdet(em_evidence_work_t *ws, size_t eta, const em_params_t *p,
-                                 size_t ig, double *logdet)
+static md_status_t em_neg_logdet(em_evidence_work_t *ws, size_t eta, const em_params_t *p, size_t ig, double *logdet)
 {
     const size_t m = (ig < eta) ? eta - 1u : eta;
     double log_diag = 0.0;
@@ -712,19 +702,16 @@ md_status_t em_evidence_finish(const em_prior_t *prior, const em_params_t *p, do
         return MD_E_NUMERIC;
     }
     const size_t dims = boundary ? eta - 1u : eta;
-    *log_evidence = lp + em_param_prior_log_const(p->d, p->g, shape_prior_width) +
-                    0.5 * (double)dims * EM_LOG_2PI - 0.5 * logdet_h -
-                    (boundary ? log(slope) : 0.0); /* eq. 3.18 */
+    *log_evidence = lp + em_param_prior_log_const(p->d, p->g, shape_prior_width) + 0.5 * (double)dims * EM_LOG_2PI -
+                    0.5 * logdet_h - (boundary ? log(slope) : 0.0); /* eq. 3.18 */
     return isfinite(*log_evidence) ? MD_OK : MD_E_NUMERIC;
 }
 
-md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outlier,
-                                const em_prior_t *prior, const em_params_t *p,
-                                double shape_prior_width, em_evidence_work_t *ws,
+md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                                const em_params_t *p, double shape_prior_width, em_evidence_work_t *ws,
                                 double *log_evidence)
 {
-    if ((log_evidence == NULL) || !(shape_prior_width > 0.0) ||
-        !em_derivs_args_ok(data, outlier, prior, p, ws)) {
+    if ((log_evidence == NULL) || !(shape_prior_width > 0.0) || !em_derivs_args_ok(data, outlier, prior, p, ws)) {
         return MD_E_ARG;
     }
     const md_status_t st = em_evidence_data(data, outlier, p, ws);

@@ -41,18 +41,18 @@
 
 #include "cluster/em_model.h"
 
-#define EM_P_MAX (EM_NC_MAX + 1u)     ///< covariance parameters of one cluster: its C_g elements and λ
-#define EM_SHAPE_PRIOR_WIDTH 10.0     ///< default w_c: C_g elements uniform over a width of 10
+#define EM_P_MAX (EM_NC_MAX + 1u)  ///< covariance parameters of one cluster: its C_g elements and λ
+#define EM_SHAPE_PRIOR_WIDTH 10.0  ///< default w_c: C_g elements uniform over a width of 10
 
 /// Per-cluster derivative tables (internal to em_evidence.c; exposed for sizing).
 typedef struct {
     double chol[EM_D_MAX * EM_D_MAX];
     double sigma_inv[EM_D_MAX * EM_D_MAX];
     double logdet;
-    double n_t[EM_P_MAX][EM_D_MAX * EM_D_MAX];            ///< Σ^{-1} Σ_t Σ^{-1}
-    double tr_m[EM_P_MAX];                                ///< tr(Σ^{-1} Σ_t)
-    double k_ts[EM_P_MAX][EM_P_MAX];                      ///< constant part of ∂²log Φ/∂t∂s
-    double q_ts[EM_P_MAX][EM_P_MAX][EM_D_MAX * EM_D_MAX]; ///< quadratic-form part of ∂²log Φ/∂t∂s
+    double n_t[EM_P_MAX][EM_D_MAX * EM_D_MAX];             ///< Σ^{-1} Σ_t Σ^{-1}
+    double tr_m[EM_P_MAX];                                 ///< tr(Σ^{-1} Σ_t)
+    double k_ts[EM_P_MAX][EM_P_MAX];                       ///< constant part of ∂²log Φ/∂t∂s
+    double q_ts[EM_P_MAX][EM_P_MAX][EM_D_MAX * EM_D_MAX];  ///< quadratic-form part of ∂²log Φ/∂t∂s
 } em_comp_deriv_t;
 
 /// Per-cluster constants of the d = 2 pass (internal to em_evidence_d2.c;
@@ -73,16 +73,16 @@ typedef struct {
 /// Between em_evidence_data and em_evidence_finish it holds the data part.
 typedef struct {
     em_comp_deriv_t comp[EM_G_MAX];
-    double hess[EM_ETA_MAX * EM_ETA_MAX];   ///< data part: Σ_i ∇∇ l_i (eq. B.17), full
+    double hess[EM_ETA_MAX * EM_ETA_MAX];  ///< data part: Σ_i ∇∇ l_i (eq. B.17), full
     double scaled[EM_ETA_MAX * EM_ETA_MAX];
     double u[EM_ETA_MAX];
-    double grad[EM_ETA_MAX];                ///< data part: Σ_i ∇ l_i
-    double data_ll;                         ///< data part: log p(Y|Θ̂) = Σ_i l_i
-    size_t data_d;                          ///< d and G the data part was made for (0: none)
+    double grad[EM_ETA_MAX];  ///< data part: Σ_i ∇ l_i
+    double data_ll;           ///< data part: log p(Y|Θ̂) = Σ_i l_i
+    size_t data_d;            ///< d and G the data part was made for (0: none)
     size_t data_g;
-    double prior_h[EM_G_MAX][EM_D_MAX * EM_D_MAX]; ///< ∇∇ log p(μ_g) of the prior being finished
-    em_d2_comp_t d2[EM_G_MAX];              ///< d = 2 pass: per-cluster constants
-    double d2_blk[EM_G_MAX][21];            ///< d = 2 pass: per-cluster curvature sums (6 × 6 upper)
+    double prior_h[EM_G_MAX][EM_D_MAX * EM_D_MAX];  ///< ∇∇ log p(μ_g) of the prior being finished
+    em_d2_comp_t d2[EM_G_MAX];                      ///< d = 2 pass: per-cluster constants
+    double d2_blk[EM_G_MAX][21];                    ///< d = 2 pass: per-cluster curvature sums (6 × 6 upper)
 } em_evidence_work_t;
 
 /// η, the number of independent parameters of a model with g clusters in d dimensions.
@@ -98,9 +98,9 @@ md_status_t em_theta_unpack(const double *theta, size_t d, size_t g, em_params_t
 /// log-posterior log p(Y|Θ) + Σ_g log p(μ_g) (eq. 3.4 without the constant C),
 /// and optionally its gradient (η values) and Hessian (η × η, row-major) with
 /// respect to Θ. grad or hess may be NULL. O(n (g d^2 P^2 + η^2)).
-md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlier,
-                               const em_prior_t *prior, const em_params_t *p, double *log_post,
-                               double *grad, double *hess, em_evidence_work_t *ws);
+md_status_t em_log_post_derivs(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                               const em_params_t *p, double *log_post, double *grad, double *hess,
+                               em_evidence_work_t *ws);
 
 /// log C of eq. 3.10 under the priors stated above.
 double em_param_prior_log_const(size_t d, size_t g, double shape_prior_width);
@@ -108,9 +108,8 @@ double em_param_prior_log_const(size_t d, size_t g, double shape_prior_width);
 /// Laplace log evidence (eq. 3.18) at the fitted Θ̂. shape_prior_width > 0.
 /// MD_E_NUMERIC if H is not positive definite (Θ̂ is not a local maximum);
 /// the caller reports EM_FAIL_HESSIAN then.
-md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outlier,
-                                const em_prior_t *prior, const em_params_t *p,
-                                double shape_prior_width, em_evidence_work_t *ws,
+md_status_t em_evidence_laplace(const em_data_t *data, const em_outlier_t *outlier, const em_prior_t *prior,
+                                const em_params_t *p, double shape_prior_width, em_evidence_work_t *ws,
                                 double *log_evidence);
 
 /// The data part of the Laplace evidence at Θ̂ = p: log p(Y|Θ̂) and its

@@ -18,14 +18,14 @@
 #define D2_LOG_2PI 1.8378770664093454836
 #define D2_LN2 0.69314718055994530942
 #define D2_OUTER_BATCH 4u /* point gradients folded into H per pass over it */
-#define D2_LOG_BATCH 64u /* points per renormalisation of the product of normalisers (each ≤ G + 1 ≤ 9) */
+#define D2_LOG_BATCH 64u  /* points per renormalisation of the product of normalisers (each ≤ G + 1 ≤ 9) */
 
 _Static_assert(EM_D_MAX >= 2u, "the d = 2 pass needs room for 2-D points");
 
 /* Packed index of (i, j), i ≤ j, in a 6 × 6 upper triangle. */
-static const uint8_t D2_UP[D2_SLOTS][D2_SLOTS] = {
-    {0u, 1u, 2u, 3u, 4u, 5u},    {0u, 6u, 7u, 8u, 9u, 10u},   {0u, 0u, 11u, 12u, 13u, 14u},
-    {0u, 0u, 0u, 15u, 16u, 17u}, {0u, 0u, 0u, 0u, 18u, 19u}, {0u, 0u, 0u, 0u, 0u, 20u}};
+static const uint8_t D2_UP[D2_SLOTS][D2_SLOTS] = {{0u, 1u, 2u, 3u, 4u, 5u},     {0u, 6u, 7u, 8u, 9u, 10u},
+                                                  {0u, 0u, 11u, 12u, 13u, 14u}, {0u, 0u, 0u, 15u, 16u, 17u},
+                                                  {0u, 0u, 0u, 0u, 18u, 19u},   {0u, 0u, 0u, 0u, 0u, 20u}};
 static const uint8_t D2_PAIR_T[D2_PAIRS] = {0u, 0u, 0u, 1u, 1u, 2u};
 static const uint8_t D2_PAIR_S[D2_PAIRS] = {0u, 1u, 2u, 1u, 2u, 2u};
 
@@ -51,8 +51,7 @@ static void d2_prepare(const em_params_t *p, const em_comp_deriv_t *cd, const do
         o->cst = log_pi[g + 1u] - 0.5 * (2.0 * D2_LOG_2PI + c->logdet);
         o->pi = p->pi[g];
         for (size_t t = 0u; t < D2_NP; ++t) {
-            const double half[4] = {0.5 * c->n_t[t][0], 0.5 * c->n_t[t][1], 0.5 * c->n_t[t][2],
-                                    0.5 * c->n_t[t][3]};
+            const double half[4] = {0.5 * c->n_t[t][0], 0.5 * c->n_t[t][1], 0.5 * c->n_t[t][2], 0.5 * c->n_t[t][3]};
             o->half_tr[t] = -0.5 * c->tr_m[t];
             d2_quad_of(half, o->half_n[t]);
             memcpy(o->n_t[t], c->n_t[t], sizeof o->n_t[t]);
@@ -106,15 +105,14 @@ static void d2_curvature(const em_d2_comp_t *k, const d2_point_t *pt, double a, 
     for (size_t m = 0u; m < D2_PAIRS; ++m) {
         const size_t t = D2_PAIR_T[m];
         const size_t s = D2_PAIR_S[m];
-        blk[D2_UP[3u + t][3u + s]] +=
-            q * (pt->dt[t] * pt->dt[s] + k->k_ts[m] + d2_quad(k->q_ts[m], pt->rr));
+        blk[D2_UP[3u + t][3u + s]] += q * (pt->dt[t] * pt->dt[s] + k->k_ts[m] + d2_quad(k->q_ts[m], pt->rr));
     }
 }
 
 /* One point: u_i into u (length eta), curvature into the blocks; returns the largest
  * log-term hi, and *sum_out such that l_i = hi + log(*sum_out). */
-static double d2_one_point(const em_params_t *p, const em_d2_comp_t *k, const double *y, double lf0,
-                           double log_pi0, double *u, double blk[][D2_UPPER], double *sum_out)
+static double d2_one_point(const em_params_t *p, const em_d2_comp_t *k, const double *y, double lf0, double log_pi0,
+                           double *u, double blk[][D2_UPPER], double *sum_out)
 {
     const size_t eta = 5u * p->g + 1u;
     d2_point_t pt[EM_G_MAX];
@@ -180,8 +178,8 @@ static void d2_outer(size_t eta, double u[][EM_ETA_MAX], double *grad, double *h
 }
 _Static_assert(D2_OUTER_BATCH == 4u, "d2_outer folds four gradients");
 
-double em_d2_points(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
-                    const double *log_pi, em_evidence_work_t *ws, double *grad, double *hess)
+double em_d2_points(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p, const double *log_pi,
+                    em_evidence_work_t *ws, double *grad, double *hess)
 {
     const size_t eta = 5u * p->g + 1u;
     double u[D2_OUTER_BATCH][EM_ETA_MAX];

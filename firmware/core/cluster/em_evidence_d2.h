@@ -20,7 +20,7 @@
 /// every π_g > 0, ws->comp[g] prepared for p (em_comp_prepare), grad and hess
 /// zeroed. log_pi[0..g]: log π_0 (floored) and log π_g.
 /// ws->comp holds the prepared clusters; ws->d2 and ws->d2_blk are its scratch.
-double em_d2_points(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p,
-                    const double *log_pi, em_evidence_work_t *ws, double *grad, double *hess);
+double em_d2_points(const em_data_t *data, const em_outlier_t *outlier, const em_params_t *p, const double *log_pi,
+                    em_evidence_work_t *ws, double *grad, double *hess);
 
 #endif

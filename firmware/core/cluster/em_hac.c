@@ -22,8 +22,7 @@ static double em_hac_cost(const em_hac_work_t *ws, size_t d, size_t a, size_t b)
 
 /* Nearest active slot to a; a tie keeps `prefer` (the chain's previous
  * element), which is what stops the chain from cycling. */
-static size_t em_hac_nearest(const em_hac_work_t *ws, size_t d, size_t a, size_t prefer,
-                             double *cost)
+static size_t em_hac_nearest(const em_hac_work_t *ws, size_t d, size_t a, size_t prefer, double *cost)
 {
     size_t best = EM_HAC_NONE;
     double best_cost = INFINITY;
@@ -73,9 +72,8 @@ static size_t em_hac_first_active(const em_hac_work_t *ws)
 
 md_status_t em_hac_ward(const em_data_t *data, em_hac_work_t *ws)
 {
-    if ((data == NULL) || (ws == NULL) || (data->y == NULL) || (data->n == 0u) ||
-        (data->n > EM_N_MAX) || (data->d == 0u) || (data->d > EM_D_MAX) ||
-        !linalg_all_finite(data->y, data->n * data->d)) {
+    if ((data == NULL) || (ws == NULL) || (data->y == NULL) || (data->n == 0u) || (data->n > EM_N_MAX) ||
+        (data->d == 0u) || (data->d > EM_D_MAX) || !linalg_all_finite(data->y, data->n * data->d)) {
         return MD_E_ARG;
     }
     const size_t d = data->d;
@@ -84,7 +82,7 @@ md_status_t em_hac_ward(const em_data_t *data, em_hac_work_t *ws)
         memcpy(ws->centroid[i], &data->y[i * d], d * sizeof(double));
         ws->size[i] = 1.0;
     }
-    size_t top = 0u;    /* chain length */
+    size_t top = 0u; /* chain length */
     size_t merges = 0u;
     /* each step pushes one slot or merges (pops two); pushes ≤ 2·merges + n, so 4n bounds the steps */
     for (size_t step = 0u; (merges + 1u < data->n) && (step < 4u * data->n + 4u); ++step) {
@@ -123,8 +121,8 @@ static uint16_t em_hac_find(uint16_t *parent, uint16_t x, size_t n)
 
 md_status_t em_hac_cut(em_hac_work_t *ws, size_t g, uint8_t *labels)
 {
-    if ((ws == NULL) || (labels == NULL) || (g == 0u) || (g > EM_G_MAX) || (ws->n == 0u) ||
-        (g > ws->n) || (ws->n > EM_N_MAX)) {
+    if ((ws == NULL) || (labels == NULL) || (g == 0u) || (g > EM_G_MAX) || (ws->n == 0u) || (g > ws->n) ||
+        (ws->n > EM_N_MAX)) {
         return MD_E_ARG;
     }
     const size_t n = ws->n;

@@ -17,15 +17,15 @@
 
 /// Caller-owned workspace (about 26 KB at EM_N_MAX = 512, d = 3).
 typedef struct {
-    size_t n;                              ///< points of the last em_hac_ward call
-    double centroid[EM_N_MAX][EM_D_MAX];   ///< centroid of the cluster held in each slot
-    double size[EM_N_MAX];                 ///< members of each slot's cluster (0 = inactive)
-    uint16_t chain[EM_N_MAX];              ///< the nearest-neighbour chain (a stack)
-    uint16_t merge_a[EM_N_MAX];            ///< slot pairs merged, in order found
+    size_t n;                             ///< points of the last em_hac_ward call
+    double centroid[EM_N_MAX][EM_D_MAX];  ///< centroid of the cluster held in each slot
+    double size[EM_N_MAX];                ///< members of each slot's cluster (0 = inactive)
+    uint16_t chain[EM_N_MAX];             ///< the nearest-neighbour chain (a stack)
+    uint16_t merge_a[EM_N_MAX];           ///< slot pairs merged, in order found
     uint16_t merge_b[EM_N_MAX];
-    double merge_cost[EM_N_MAX];           ///< sorted ascending after em_hac_ward
-    uint16_t order[EM_N_MAX];              ///< merge indices in ascending cost
-    uint16_t parent[EM_N_MAX];             ///< union-find forest of em_hac_cut
+    double merge_cost[EM_N_MAX];  ///< sorted ascending after em_hac_ward
+    uint16_t order[EM_N_MAX];     ///< merge indices in ascending cost
+    uint16_t parent[EM_N_MAX];    ///< union-find forest of em_hac_cut
 } em_hac_work_t;
 
 /// Builds the Ward dendrogram of the n ≥ 1 points into ws. O(n^2 d).

@@ -18,8 +18,8 @@ double em_logaddexp(double a, double b)
 
 md_status_t em_bounding_volume(const em_data_t *data, double *volume)
 {
-    if ((data == NULL) || (volume == NULL) || (data->y == NULL) || (data->n == 0u) ||
-        (data->d == 0u) || (data->d > EM_D_MAX) || (data->n > EM_N_MAX)) {
+    if ((data == NULL) || (volume == NULL) || (data->y == NULL) || (data->n == 0u) || (data->d == 0u) ||
+        (data->d > EM_D_MAX) || (data->n > EM_N_MAX)) {
         return MD_E_ARG;
     }
     double v = 1.0;
@@ -38,8 +38,7 @@ md_status_t em_bounding_volume(const em_data_t *data, double *volume)
 
 md_status_t em_outlier_init(size_t d, const double *noise_cov, double volume, em_outlier_t *out)
 {
-    if ((noise_cov == NULL) || (out == NULL) || (d == 0u) || (d > EM_D_MAX) || !(volume > 0.0) ||
-        !isfinite(volume)) {
+    if ((noise_cov == NULL) || (out == NULL) || (d == 0u) || (d > EM_D_MAX) || !(volume > 0.0) || !isfinite(volume)) {
         return MD_E_ARG;
     }
     memset(out, 0, sizeof *out);
@@ -97,8 +96,7 @@ double em_outlier_logpdf_at(const em_outlier_t *outlier, const em_data_t *data, 
     return em_outlier_logpdf(outlier, &data->y[i * data->d]);
 }
 
-static md_status_t em_prior_target(size_t d, const em_target_t *t, double log_w, em_prior_t *p,
-                                   size_t j)
+static md_status_t em_prior_target(size_t d, const em_target_t *t, double log_w, em_prior_t *p, size_t j)
 {
     double work[EM_D_MAX * EM_D_MAX];
     double logdet = 0.0;
@@ -112,12 +110,11 @@ static md_status_t em_prior_target(size_t d, const em_target_t *t, double log_w,
     return MD_OK;
 }
 
-md_status_t em_prior_init(size_t d, const em_target_t *targets, size_t n_targets, double lambda0,
-                          double volume, em_prior_t *out)
+md_status_t em_prior_init(size_t d, const em_target_t *targets, size_t n_targets, double lambda0, double volume,
+                          em_prior_t *out)
 {
     if ((out == NULL) || (d == 0u) || (d > EM_D_MAX) || (n_targets > EM_J_MAX) ||
-        ((targets == NULL) && (n_targets > 0u)) || !(lambda0 > 0.0) || !(volume > 0.0) ||
-        !isfinite(volume)) {
+        ((targets == NULL) && (n_targets > 0u)) || !(lambda0 > 0.0) || !(volume > 0.0) || !isfinite(volume)) {
         return MD_E_ARG;
     }
     memset(out, 0, sizeof *out);
@@ -133,8 +130,7 @@ md_status_t em_prior_init(size_t d, const em_target_t *targets, size_t n_targets
     }
     out->log_w0_over_v = log(lambda0 / c) - log(volume);
     for (size_t j = 0u; j < n_targets; ++j) {
-        const md_status_t st =
-            em_prior_target(d, &targets[j], log(targets[j].p_detect / c), out, j);
+        const md_status_t st = em_prior_target(d, &targets[j], log(targets[j].p_detect / c), out, j);
         if (st != MD_OK) {
             return st;
         }

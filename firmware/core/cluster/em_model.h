@@ -23,17 +23,17 @@
 #include "md_status.h"
 #include "md_config.h"
 
-#define EM_D_MAX MD_FEAT_DIM_MAX                         ///< feature dimension d, 1..3
-#define EM_G_MAX MD_G_MAX                                ///< Gaussian clusters per model
-#define EM_N_MAX MD_MAX_SPIKES                           ///< points per interval
-#define EM_J_MAX MD_MAX_TARGETS                          ///< predicted targets in the mean prior
-#define EM_NC_MAX ((EM_D_MAX * (EM_D_MAX + 1u)) / 2u - 1u) ///< free elements of C_g (det C_g = 1)
+#define EM_D_MAX MD_FEAT_DIM_MAX                            ///< feature dimension d, 1..3
+#define EM_G_MAX MD_G_MAX                                   ///< Gaussian clusters per model
+#define EM_N_MAX MD_MAX_SPIKES                              ///< points per interval
+#define EM_J_MAX MD_MAX_TARGETS                             ///< predicted targets in the mean prior
+#define EM_NC_MAX ((EM_D_MAX * (EM_D_MAX + 1u)) / 2u - 1u)  ///< free elements of C_g (det C_g = 1)
 /// Independent parameters of the largest model: {π_g, μ_g, c_g}_{g=1..G} and λ (eq. B.2).
 #define EM_ETA_MAX (EM_G_MAX * (1u + EM_D_MAX + EM_NC_MAX) + 1u)
 
-#define EM_OUTLIER_K 4.0          ///< K of the outlier Gaussian (Remark 3.2)
-#define EM_LAMBDA_NEW 0.01        ///< λν, expected new neurons per interval (Table 4.1)
-#define EM_LAMBDA_FALSE 0.015     ///< λφ, expected false clusters per interval (Table 4.1)
+#define EM_OUTLIER_K 4.0       ///< K of the outlier Gaussian (Remark 3.2)
+#define EM_LAMBDA_NEW 0.01     ///< λν, expected new neurons per interval (Table 4.1)
+#define EM_LAMBDA_FALSE 0.015  ///< λφ, expected false clusters per interval (Table 4.1)
 
 _Static_assert(EM_D_MAX >= 1u && EM_D_MAX <= 3u, "App. B algebra is implemented for d <= 3");
 _Static_assert(EM_G_MAX <= 8u, "labels are stored as uint8_t and subsets as 8-bit masks");
@@ -69,10 +69,10 @@ typedef enum {
 
 /// A predicted target j of the mean prior (eq. 3.8), in the current feature space.
 typedef struct {
-    double mean[EM_D_MAX];                   ///< predicted mean μ̂_j^{k|k-1} (eq. 4.9)
-    double s_cov[EM_D_MAX * EM_D_MAX];       ///< S_j = R_j + Q (eq. 4.13), SPD, row-major d×d in the first d·d entries
-    double cluster_cov[EM_D_MAX * EM_D_MAX]; ///< Σ_j^{k-1} (same layout), for seeding (eq. 3.16)
-    double p_detect;                         ///< P_d,j in (0, 1]
+    double mean[EM_D_MAX];              ///< predicted mean μ̂_j^{k|k-1} (eq. 4.9)
+    double s_cov[EM_D_MAX * EM_D_MAX];  ///< S_j = R_j + Q (eq. 4.13), SPD, row-major d×d in the first d·d entries
+    double cluster_cov[EM_D_MAX * EM_D_MAX];  ///< Σ_j^{k-1} (same layout), for seeding (eq. 3.16)
+    double p_detect;                          ///< P_d,j in (0, 1]
 } em_target_t;
 
 /// The points of one interval (borrowed, row-major n × d).
@@ -98,11 +98,11 @@ typedef struct {
 typedef struct {
     size_t d;
     size_t n_targets;
-    double log_w0_over_v;                        ///< log(ω_0 / V)
-    double log_w_norm[EM_J_MAX];                 ///< log ω_j - ½(d log 2π + log det S_j)
-    double mean[EM_J_MAX][EM_D_MAX];             ///< prior means μ̂_j
-    double s_chol[EM_J_MAX][EM_D_MAX * EM_D_MAX];///< Cholesky of S_j
-    double s_inv[EM_J_MAX][EM_D_MAX * EM_D_MAX]; ///< S_j^{-1}
+    double log_w0_over_v;                          ///< log(ω_0 / V)
+    double log_w_norm[EM_J_MAX];                   ///< log ω_j - ½(d log 2π + log det S_j)
+    double mean[EM_J_MAX][EM_D_MAX];               ///< prior means μ̂_j
+    double s_chol[EM_J_MAX][EM_D_MAX * EM_D_MAX];  ///< Cholesky of S_j
+    double s_inv[EM_J_MAX][EM_D_MAX * EM_D_MAX];   ///< S_j^{-1}
 } em_prior_t;
 
 /// Parameters Θ of one model class (eq. 3.5): π_0 = 1 - Σ π_g.
@@ -112,8 +112,8 @@ typedef struct {
     double pi0;
     double pi[EM_G_MAX];
     double mean[EM_G_MAX][EM_D_MAX];
-    double shape[EM_G_MAX][EM_D_MAX * EM_D_MAX]; ///< C_g, symmetric, det C_g = 1
-    double lambda;                               ///< shared volume λ (Σ_g = λ C_g)
+    double shape[EM_G_MAX][EM_D_MAX * EM_D_MAX];  ///< C_g, symmetric, det C_g = 1
+    double lambda;                                ///< shared volume λ (Σ_g = λ C_g)
 } em_params_t;
 
 /// Volume of the bounding box of the points, V = Π_j (max y_j - min y_j).
@@ -144,8 +144,8 @@ double em_outlier_logpdf_at(const em_outlier_t *outlier, const em_data_t *data, 
 /// Prepares the mean prior (eq. 3.8, 3.9) from the targets (may be NULL when
 /// n_targets = 0): ω_0 ∝ λ0 = λν + λφ, ω_j ∝ P_d,j. lambda0 > 0.
 /// MD_E_ARG on bad P_d or count, MD_E_NUMERIC if some S_j is not SPD.
-md_status_t em_prior_init(size_t d, const em_target_t *targets, size_t n_targets, double lambda0,
-                          double volume, em_prior_t *out);
+md_status_t em_prior_init(size_t d, const em_target_t *targets, size_t n_targets, double lambda0, double volume,
+                          em_prior_t *out);
 
 /// log p(μ) of eq. 3.8; when zeta is non-NULL it receives ζ_j, j = 0..J (eq. 3.14).
 /// A target whose Mahalanobis distance to μ overflows contributes weight 0; a

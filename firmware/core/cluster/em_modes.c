@@ -10,7 +10,7 @@
 /* One component's inverse covariance and the constant of its log density. */
 typedef struct {
     double inv[EM_D_MAX * EM_D_MAX]; /* Σ⁻¹ */
-    double log_c;                     /* log w − ½ log det Σ (the 2π term cancels in the ratio) */
+    double log_c;                    /* log w − ½ log det Σ (the 2π term cancels in the ratio) */
 } ridge_comp_t;
 
 static md_status_t ridge_comp(size_t d, double w, const double *cov, ridge_comp_t *c)
@@ -37,8 +37,8 @@ static double ridge_log_density(const ridge_comp_t *c, const double *mu, const d
 }
 
 /* x(α) of the ridgeline: [(1−α)Σa⁻¹ + αΣb⁻¹] x = (1−α)Σa⁻¹μa + αΣb⁻¹μb. */
-static md_status_t ridge_point(const ridge_comp_t *ca, const double *ma, const ridge_comp_t *cb,
-                               const double *mb, size_t d, double alpha, double *x)
+static md_status_t ridge_point(const ridge_comp_t *ca, const double *ma, const ridge_comp_t *cb, const double *mb,
+                               size_t d, double alpha, double *x)
 {
     double a[EM_D_MAX * EM_D_MAX];
     for (size_t i = 0u; i < d; ++i) {
@@ -113,8 +113,8 @@ md_status_t em_gauss_ridge_ratio(size_t d, double w_a, const double *m_a, const 
 
 static bool ridge_args_ok(const em_params_t *p, size_t a, size_t b)
 {
-    return (p != NULL) && (p->d >= 1u) && (p->d <= EM_D_MAX) && (p->g <= EM_G_MAX) && (a >= 1u) &&
-           (b >= 1u) && (a <= p->g) && (b <= p->g) && (a != b) && (p->lambda > 0.0) && isfinite(p->lambda);
+    return (p != NULL) && (p->d >= 1u) && (p->d <= EM_D_MAX) && (p->g <= EM_G_MAX) && (a >= 1u) && (b >= 1u) &&
+           (a <= p->g) && (b <= p->g) && (a != b) && (p->lambda > 0.0) && isfinite(p->lambda);
 }
 
 md_status_t em_ridge_ratio(const em_params_t *p, size_t a, size_t b, double *ratio)

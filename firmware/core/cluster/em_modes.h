@@ -27,7 +27,7 @@
 
 #include "cluster/em_model.h"
 
-#define EM_RIDGE_POINTS 41u ///< α grid on [0, 1] (a step of 0.025)
+#define EM_RIDGE_POINTS 41u  ///< α grid on [0, 1] (a step of 0.025)
 
 /// Ridgeline ratio in (0, 1] of w_a N(m_a, c_a) + w_b N(m_b, c_b) in d ≤ EM_D_MAX
 /// dimensions (c_*: row-major d × d covariances, SPD; weights > 0).

@@ -13,8 +13,7 @@ typedef struct {
     double chol[EM_J_MAX][EM_D_MAX * EM_D_MAX];
 } em_seed_factors_t;
 
-static md_status_t em_seed_factor(const em_target_t *targets, size_t n_targets, size_t d,
-                                  em_seed_factors_t *f)
+static md_status_t em_seed_factor(const em_target_t *targets, size_t n_targets, size_t d, em_seed_factors_t *f)
 {
     for (size_t j = 0u; j < n_targets; ++j) {
         memcpy(f->chol[j], targets[j].cluster_cov, d * d * sizeof(double));
@@ -71,9 +70,8 @@ static unsigned em_popcount(uint32_t m)
 }
 
 /* §3.3.4.2: the subset of g prior clusters with the least summed d^2, into *best_mask. */
-static md_status_t em_seed_best_subset(const em_data_t *data, const em_target_t *targets,
-                                       size_t n_targets, const em_seed_factors_t *f, size_t g,
-                                       uint32_t *best_mask)
+static md_status_t em_seed_best_subset(const em_data_t *data, const em_target_t *targets, size_t n_targets,
+                                       const em_seed_factors_t *f, size_t g, uint32_t *best_mask)
 {
     uint32_t best_m = 0u;
     double best = INFINITY;
@@ -153,8 +151,7 @@ static size_t em_seed_axis(const em_data_t *data, const uint8_t *labels, uint8_t
     }
     double vals[EM_D_MAX];
     double vecs[EM_D_MAX * EM_D_MAX];
-    if ((n < 2u) || (linalg_sym_eigen(cov, d, vals, vecs, EM_SEED_JACOBI_SWEEPS) != MD_OK) ||
-        !(vals[0] > 0.0)) {
+    if ((n < 2u) || (linalg_sym_eigen(cov, d, vals, vecs, EM_SEED_JACOBI_SWEEPS) != MD_OK) || !(vals[0] > 0.0)) {
         return 0u;
     }
     for (size_t j = 0u; j < d; ++j) {
@@ -163,11 +160,10 @@ static size_t em_seed_axis(const em_data_t *data, const uint8_t *labels, uint8_t
     return n;
 }
 
-md_status_t em_seed_split(const em_data_t *data, uint8_t *labels, uint8_t victim,
-                          uint8_t new_label, em_seed_work_t *ws)
+md_status_t em_seed_split(const em_data_t *data, uint8_t *labels, uint8_t victim, uint8_t new_label, em_seed_work_t *ws)
 {
-    if ((data == NULL) || (labels == NULL) || (ws == NULL) || (data->y == NULL) ||
-        (data->n > EM_N_MAX) || (data->d == 0u) || (data->d > EM_D_MAX)) {
+    if ((data == NULL) || (labels == NULL) || (ws == NULL) || (data->y == NULL) || (data->n > EM_N_MAX) ||
+        (data->d == 0u) || (data->d > EM_D_MAX)) {
         return MD_E_ARG;
     }
     double axis[EM_D_MAX];
@@ -205,8 +201,7 @@ md_status_t em_seed_split(const em_data_t *data, uint8_t *labels, uint8_t victim
 }
 
 /* §3.3.4.3: split the widest group until there are g groups. */
-static md_status_t em_seed_grow(const em_data_t *data, size_t have, size_t g, em_seed_work_t *ws,
-                                uint8_t *labels)
+static md_status_t em_seed_grow(const em_data_t *data, size_t have, size_t g, em_seed_work_t *ws, uint8_t *labels)
 {
     for (size_t k = have; k < g; ++k) {
         uint8_t widest = 0u;
@@ -258,12 +253,12 @@ static bool em_seed_nonempty(const uint8_t *labels, size_t n, size_t g)
     return seen == ((1u << g) - 1u);
 }
 
-md_status_t em_seed_from_targets(const em_data_t *data, const em_target_t *targets,
-                                 size_t n_targets, size_t g, em_seed_work_t *ws, uint8_t *labels)
+md_status_t em_seed_from_targets(const em_data_t *data, const em_target_t *targets, size_t n_targets, size_t g,
+                                 em_seed_work_t *ws, uint8_t *labels)
 {
-    if ((data == NULL) || (data->y == NULL) || (ws == NULL) || (labels == NULL) || (g == 0u) ||
-        (g > EM_G_MAX) || (n_targets > EM_J_MAX) || ((targets == NULL) && (n_targets > 0u)) ||
-        (data->n > EM_N_MAX) || (data->d == 0u) || (data->d > EM_D_MAX)) {
+    if ((data == NULL) || (data->y == NULL) || (ws == NULL) || (labels == NULL) || (g == 0u) || (g > EM_G_MAX) ||
+        (n_targets > EM_J_MAX) || ((targets == NULL) && (n_targets > 0u)) || (data->n > EM_N_MAX) || (data->d == 0u) ||
+        (data->d > EM_D_MAX)) {
         return MD_E_ARG;
     }
     if (data->n < g) {

@@ -19,7 +19,7 @@
 
 #include "cluster/em_model.h"
 
-#define EM_SEED_MIDDLE_FRACTION 0.90 ///< part of a group where a split may fall (footnote 10)
+#define EM_SEED_MIDDLE_FRACTION 0.90  ///< part of a group where a split may fall (footnote 10)
 
 /// Scratch space for em_seed_from_targets (caller-owned, no heap).
 typedef struct {
@@ -34,13 +34,13 @@ typedef struct {
 /// MD_E_DEGENERATE if the partition cannot reach g non-empty groups
 /// (too few points or every group too small to split).
 /// O(C(J,g) · n · g · d^2) for the subset search, O(n log n) per split.
-md_status_t em_seed_from_targets(const em_data_t *data, const em_target_t *targets,
-                                 size_t n_targets, size_t g, em_seed_work_t *ws, uint8_t *labels);
+md_status_t em_seed_from_targets(const em_data_t *data, const em_target_t *targets, size_t n_targets, size_t g,
+                                 em_seed_work_t *ws, uint8_t *labels);
 
 /// Splits group `victim` of `labels` into itself and a new group `new_label`
 /// along its principal axis at the largest gap inside the middle 90 % (§3.3.4.3).
 /// MD_E_DEGENERATE if the group has fewer than 2 points or no spread.
-md_status_t em_seed_split(const em_data_t *data, uint8_t *labels, uint8_t victim,
-                          uint8_t new_label, em_seed_work_t *ws);
+md_status_t em_seed_split(const em_data_t *data, uint8_t *labels, uint8_t victim, uint8_t new_label,
+                          em_seed_work_t *ws);
 
 #endif

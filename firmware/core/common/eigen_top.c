@@ -9,11 +9,11 @@
 #include <stdint.h>
 #include <string.h>
 
-#define ET_BISECT_MAX 96u   /* halvings of a Gershgorin interval down to ~2 ulps of ‖T‖ need ≤ 64 */
-#define ET_INVIT_MAX 8u     /* inverse iterations per vector; 1-2 suffice at a bisected λ */
-#define ET_INVIT_MIN 3u     /* always this many: the last ones only polish */
-#define ET_RESID_REL 1e-9   /* accepted ‖T z - λ z‖ / ‖T‖ (the method reaches ~1e-15) */
-#define ET_RESCALE 1e150    /* back substitution rescales its vector beyond this magnitude */
+#define ET_BISECT_MAX 96u /* halvings of a Gershgorin interval down to ~2 ulps of ‖T‖ need ≤ 64 */
+#define ET_INVIT_MAX 8u   /* inverse iterations per vector; 1-2 suffice at a bisected λ */
+#define ET_INVIT_MIN 3u   /* always this many: the last ones only polish */
+#define ET_RESID_REL 1e-9 /* accepted ‖T z - λ z‖ / ‖T‖ (the method reaches ~1e-15) */
+#define ET_RESCALE 1e150  /* back substitution rescales its vector beyond this magnitude */
 
 /* Reflector of step j: (I - τ v vᵀ) x = μ e1 for x = A[j+1.., j]; v_0 = 1 is
  * implicit, v_i (i ≥ 1) overwrite x_i in column j. LAPACK's dlarfg
@@ -330,8 +330,8 @@ static void et_back_transform(const double *a, size_t n, const eigen_top_work_t 
 
 md_status_t linalg_sym_eigen_top(double *a, size_t n, size_t k, double *vals, double *vecs, eigen_top_work_t *ws)
 {
-    if ((a == NULL) || (vals == NULL) || (vecs == NULL) || (ws == NULL) || (n < 1u) || (n > LINALG_MAX_N) ||
-        (k < 1u) || (k > n) || (k > EIGEN_TOP_K_MAX)) {
+    if ((a == NULL) || (vals == NULL) || (vecs == NULL) || (ws == NULL) || (n < 1u) || (n > LINALG_MAX_N) || (k < 1u) ||
+        (k > n) || (k > EIGEN_TOP_K_MAX)) {
         return MD_E_ARG;
     }
     for (size_t r = 0u; r < n; ++r) {

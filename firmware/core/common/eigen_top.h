@@ -28,17 +28,17 @@
 #include "common/linalg.h"
 #include "md_status.h"
 
-#define EIGEN_TOP_K_MAX 4u ///< most eigenpairs one call returns
+#define EIGEN_TOP_K_MAX 4u  ///< most eigenpairs one call returns
 
 /// Scratch storage (caller-owned): the reflectors and the tridiagonal system.
 typedef struct {
-    double beta[LINALG_MAX_N];          ///< reflector scale β_j of step j
-    double diag[LINALG_MAX_N];          ///< T's diagonal
-    double off[LINALG_MAX_N];           ///< T's sub-diagonal off[j] = T[j+1][j]
-    double off2[LINALG_MAX_N];          ///< off[j]²
-    double lu[4][LINALG_MAX_N];         ///< LU of T - λI: diagonal, super, second super, multipliers
-    unsigned char piv[LINALG_MAX_N];    ///< rows swapped at step j of the LU
-    double z[EIGEN_TOP_K_MAX][LINALG_MAX_N]; ///< eigenvectors of T
+    double beta[LINALG_MAX_N];                ///< reflector scale β_j of step j
+    double diag[LINALG_MAX_N];                ///< T's diagonal
+    double off[LINALG_MAX_N];                 ///< T's sub-diagonal off[j] = T[j+1][j]
+    double off2[LINALG_MAX_N];                ///< off[j]²
+    double lu[4][LINALG_MAX_N];               ///< LU of T - λI: diagonal, super, second super, multipliers
+    unsigned char piv[LINALG_MAX_N];          ///< rows swapped at step j of the LU
+    double z[EIGEN_TOP_K_MAX][LINALG_MAX_N];  ///< eigenvectors of T
 } eigen_top_work_t;
 
 /// The k largest eigenvalues of the symmetric n × n row-major matrix `a`

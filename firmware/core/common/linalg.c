@@ -170,8 +170,7 @@ static int linalg_factor_ok(const double *l, size_t n)
     return 1;
 }
 
-md_status_t linalg_mahalanobis2(const double *l, size_t n, const double *x, const double *m, double *work,
-                                double *d2)
+md_status_t linalg_mahalanobis2(const double *l, size_t n, const double *x, const double *m, double *work, double *d2)
 {
     if (d2 != NULL) {
         *d2 = (double)NAN;

@@ -14,7 +14,7 @@
 
 #include "md_status.h"
 
-#define LINALG_MAX_N 64u   ///< largest matrix order any caller uses (Laplace Hessian, waveform space)
+#define LINALG_MAX_N 64u  ///< largest matrix order any caller uses (Laplace Hessian, waveform space)
 
 /// In-place Cholesky factorisation A = L L^T of a symmetric positive definite
 /// n×n matrix; on success the lower triangle holds L and the strict upper
@@ -42,8 +42,7 @@ md_status_t linalg_spd_inverse(const double *a, size_t n, double *inv, double *w
 /// 1..LINALG_MAX_N; MD_E_NUMERIC if x, m or the lower triangle of L is not
 /// finite or L has a zero diagonal entry. On failure *d2 (if d2 is non-NULL)
 /// is NaN, never a distance. O(n^2).
-md_status_t linalg_mahalanobis2(const double *l, size_t n, const double *x, const double *m, double *work,
-                                double *d2);
+md_status_t linalg_mahalanobis2(const double *l, size_t n, const double *x, const double *m, double *work, double *d2);
 
 /// Eigen-decomposition of a symmetric n×n matrix by cyclic Jacobi rotations.
 /// `a` is destroyed. Eigenvalues are returned in descending order; column k of

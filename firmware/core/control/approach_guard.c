@@ -24,16 +24,18 @@ void ag_config_default(ag_config_t *cfg)
     cfg->top_k = 5u;
 }
 
-static bool positive(double v) { return isfinite(v) && v > 0.0; }
+static bool positive(double v)
+{
+    return isfinite(v) && v > 0.0;
+}
 
 md_status_t ag_config_check(const ag_config_t *cfg)
 {
-    if (cfg == NULL || !positive(cfg->growth_stop) || !positive(cfg->baseline_min_um) ||
-        !positive(cfg->amp_floor) || !positive(cfg->amp_slow) || !positive(cfg->amp_stop) ||
-        !positive(cfg->step_near_um) || !positive(cfg->climb_frac) || !(cfg->climb_free_frac >= cfg->climb_frac) || !positive(cfg->retract_um) ||
-        !positive(cfg->still_um) ||
-        cfg->amp_floor > cfg->amp_slow || !(cfg->amp_slow < cfg->amp_stop) || cfg->top_k < 1u ||
-        cfg->top_k > AG_TOP_K_MAX) {
+    if (cfg == NULL || !positive(cfg->growth_stop) || !positive(cfg->baseline_min_um) || !positive(cfg->amp_floor) ||
+        !positive(cfg->amp_slow) || !positive(cfg->amp_stop) || !positive(cfg->step_near_um) ||
+        !positive(cfg->climb_frac) || !(cfg->climb_free_frac >= cfg->climb_frac) || !positive(cfg->retract_um) ||
+        !positive(cfg->still_um) || cfg->amp_floor > cfg->amp_slow || !(cfg->amp_slow < cfg->amp_stop) ||
+        cfg->top_k < 1u || cfg->top_k > AG_TOP_K_MAX) {
         return MD_E_ARG;
     }
     return MD_OK;
@@ -300,8 +302,7 @@ static double ceiling_room_um(const ag_state_t *s, const ag_snapshot_t *now)
 }
 
 /* Rules 3 to 5: the step. */
-static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double requested, bool still,
-                         ag_action_t *action)
+static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double requested, bool still, ag_action_t *action)
 {
     const ag_config_t *c = &s->cfg;
     double step = requested;

@@ -63,7 +63,8 @@
 #define AG_UNIT_RAW UINT32_MAX              ///< unit id of the robust amplitude
 #define AG_STILL_INTERVALS 6u               ///< a unit's level at a standstill: mean of this many intervals
 
-_Static_assert(AG_STILL_INTERVALS >= 2u && AG_STILL_INTERVALS <= AG_HISTORY, "a standstill level needs that many intervals of history");
+_Static_assert(AG_STILL_INTERVALS >= 2u && AG_STILL_INTERVALS <= AG_HISTORY,
+               "a standstill level needs that many intervals of history");
 
 /// One unit's amplitude in one interval (noise RMS units).
 typedef struct {
@@ -80,11 +81,11 @@ typedef struct {
 
 /// What the guard did to the SFSM's step.
 typedef enum {
-    AG_PASS = 0,     ///< step unchanged
-    AG_SLOWED,       ///< advance shortened to step_near_um (loud unit ahead)
-    AG_BLOCKED,      ///< advance shortened or cancelled by a ceiling
-    AG_RETRACT,      ///< retraction ordered: the unit climbed while standing still
-    AG_BAD_INPUT     ///< non-finite input: hold
+    AG_PASS = 0,  ///< step unchanged
+    AG_SLOWED,    ///< advance shortened to step_near_um (loud unit ahead)
+    AG_BLOCKED,   ///< advance shortened or cancelled by a ceiling
+    AG_RETRACT,   ///< retraction ordered: the unit climbed while standing still
+    AG_BAD_INPUT  ///< non-finite input: hold
 } ag_action_t;
 
 typedef struct {
@@ -104,33 +105,33 @@ typedef struct {
 /// A unit's ceiling.
 typedef struct {
     uint32_t id;
-    double amp;        ///< its ceiling
-    double growth;     ///< its growth when it was set (>= growth_stop)
-    uint8_t unseen;    ///< intervals since the unit was last seen
+    double amp;      ///< its ceiling
+    double growth;   ///< its growth when it was set (>= growth_stop)
+    uint8_t unseen;  ///< intervals since the unit was last seen
 } ag_ceiling_t;
 
 typedef struct {
     ag_config_t cfg;
     ag_snapshot_t hist[AG_HISTORY];
     uint8_t hist_n;
-    uint8_t hist_head;          ///< slot of the next entry
+    uint8_t hist_head;  ///< slot of the next entry
     ag_ceiling_t ceil[AG_UNITS_MAX];
     uint8_t n_ceil;
-    ag_snapshot_t steep;        ///< units steep on the latest advance (rule 1 needs two in a row)
-    ag_snapshot_t still_ref;    ///< per unit, its lowest level at the current standstill (rule 3)
-    double last_growth;         ///< largest unit growth of the latest interval (0 if none measured)
+    ag_snapshot_t steep;      ///< units steep on the latest advance (rule 1 needs two in a row)
+    ag_snapshot_t still_ref;  ///< per unit, its lowest level at the current standstill (rule 3)
+    double last_growth;       ///< largest unit growth of the latest interval (0 if none measured)
     uint32_t cycles, ceilings_set, retractions, lapses, limited, bad_inputs;
 } ag_state_t;
 
 typedef struct {
-    const ag_unit_t *unit; ///< the interval's units (ids distinct; amp >= 0, 0: not seen)
-    size_t n_units;        ///< 0..AG_UNITS_MAX
-    double depth_um;       ///< depth at which the interval was recorded
-    double step_um;        ///< the SFSM's step (signed, + advances)
+    const ag_unit_t *unit;  ///< the interval's units (ids distinct; amp >= 0, 0: not seen)
+    size_t n_units;         ///< 0..AG_UNITS_MAX
+    double depth_um;        ///< depth at which the interval was recorded
+    double step_um;         ///< the SFSM's step (signed, + advances)
 } ag_input_t;
 
 typedef struct {
-    double step_um;        ///< the step to execute
+    double step_um;  ///< the step to execute
     ag_action_t action;
     double growth;         ///< largest unit growth of this interval (0 if none measured)
     uint32_t growth_unit;  ///< its unit id

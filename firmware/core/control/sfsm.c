@@ -63,10 +63,8 @@ _Static_assert(SFSM_ROWS <= SFSM_ROWS_MAX, "one WAIT counter per row");
 _Static_assert(SFSM_STATE_COUNT <= 16u, "from_mask is 16 bits");
 
 static const sfsm_state_info_t SFSM_INFO[SFSM_STATE_COUNT] = {
-    [SFSM_SPIKE_SEARCH] = {"Spike Search", "Isolate", "search direction × Δsearch",
-                           "drop the isolation reference"},
-    [SFSM_GRADIENT_SEARCH] = {"Gradient Search", "Isolate",
-                              "search direction × Δsample (hold while no dominant track)",
+    [SFSM_SPIKE_SEARCH] = {"Spike Search", "Isolate", "search direction × Δsearch", "drop the isolation reference"},
+    [SFSM_GRADIENT_SEARCH] = {"Gradient Search", "Isolate", "search direction × Δsample (hold while no dominant track)",
                               "drop the isolation reference; best SNR := this SNR"},
     [SFSM_ISOLATE_NEURON] = {"Isolate Neuron", "Isolate",
                              "optimiser step (eq. 2.1; m*=2: ±Δmax; m*=1: Δsample); hold if converged, "
@@ -199,10 +197,9 @@ md_status_t sfsm_config_check(const sfsm_config_t *cfg)
                     sfsm_step_ok(cfg->step_sample_um, cap) && sfsm_step_ok(cfg->step_resample_um, cap) &&
                     isfinite(cfg->gamma3) && (cfg->gamma1 > 0.0) && (cfg->gamma1 < cfg->gamma2) &&
                     (cfg->gamma2 < cfg->gamma3) && (cfg->snr_drop_frac > 0.0) && (cfg->snr_drop_frac < 1.0) &&
-                    isfinite(cfg->snr_min) && (cfg->snr_min >= 0.0) &&
-                    (cfg->wait_r >= 1u) && (cfg->wait_r <= SFSM_R_MAX) && (cfg->lost_cycles >= 1u) &&
-                    isfinite(cfg->search_span_um) && (cfg->search_span_um >= 0.0) &&
-                    ((cfg->initial_dir == 1) || (cfg->initial_dir == -1));
+                    isfinite(cfg->snr_min) && (cfg->snr_min >= 0.0) && (cfg->wait_r >= 1u) &&
+                    (cfg->wait_r <= SFSM_R_MAX) && (cfg->lost_cycles >= 1u) && isfinite(cfg->search_span_um) &&
+                    (cfg->search_span_um >= 0.0) && ((cfg->initial_dir == 1) || (cfg->initial_dir == -1));
     return ok ? MD_OK : MD_E_ARG;
 }
 
@@ -231,9 +228,9 @@ static bool sfsm_input_valid(const sfsm_input_t *in)
 /* Per-cycle facts the conditions read. */
 typedef struct {
     bool valid;
-    bool dom;       /* a dominant track exists */
-    bool ours;      /* ... and it is the isolated one, or none is isolated */
-    bool at_limit;  /* the current state's step is blocked by the window */
+    bool dom;      /* a dominant track exists */
+    bool ours;     /* ... and it is the isolated one, or none is isolated */
+    bool at_limit; /* the current state's step is blocked by the window */
 } sfsm_facts_t;
 
 /* The search leash (ours, docs/sfsm.md): a neuron that falls silent, or a
@@ -256,8 +253,7 @@ static bool sfsm_cond_holds(const sfsm_t *sm, const sfsm_input_t *in, const sfsm
     case SFSM_C_HALT: return !v || in->estop || in->fault;
     case SFSM_C_RESUME: return v && in->resume && !in->estop && !in->fault;
     case SFSM_C_OMEGA3: return v && f->dom && (in->iqm >= k->gamma3);
-    case SFSM_C_OMEGA3_OTHER:
-        return v && f->dom && !f->ours && (in->iqm >= k->gamma3) && (in->snr > sm->ref_snr);
+    case SFSM_C_OMEGA3_OTHER: return v && f->dom && !f->ours && (in->iqm >= k->gamma3) && (in->snr > sm->ref_snr);
     case SFSM_C_LIMIT_ISOLATED: return v && f->at_limit && f->ours && (in->iqm >= k->gamma2);
     case SFSM_C_LIMIT_FIRST: return v && f->at_limit && (sm->reversals == 0u);
     case SFSM_C_LIMIT_AGAIN: return v && f->at_limit && (sm->reversals > 0u);
@@ -286,8 +282,7 @@ static bool sfsm_cond_holds(const sfsm_t *sm, const sfsm_input_t *in, const sfsm
 }
 
 /* Step the optimiser proposes, for Isolate / Re-Isolate Neuron (§2.2.3). */
-static double sfsm_optimiser_step(const sfsm_t *sm, const sfsm_input_t *in, const sfsm_facts_t *f,
-                                  sfsm_reason_t *why)
+static double sfsm_optimiser_step(const sfsm_t *sm, const sfsm_input_t *in, const sfsm_facts_t *f, sfsm_reason_t *why)
 {
     const sc_suggestion_t *s = &in->suggestion;
     if (!f->ours) {
@@ -463,8 +458,9 @@ static int16_t sfsm_select(sfsm_t *sm, const sfsm_input_t *in, const sfsm_facts_
         }
         const bool holds = sfsm_cond_holds(sm, in, f, r->cond);
         sm->wait[i] = holds ? ((sm->wait[i] < UINT8_MAX) ? (uint8_t)(sm->wait[i] + 1u) : UINT8_MAX) : 0u;
-        const unsigned need = (r->wait == SFSM_W_R) ? sm->cfg.wait_r
-                              : (r->wait == SFSM_W_LOST) ? sm->cfg.lost_cycles : 1u;
+        const unsigned need = (r->wait == SFSM_W_R)      ? sm->cfg.wait_r
+                              : (r->wait == SFSM_W_LOST) ? sm->cfg.lost_cycles
+                                                         : 1u;
         if ((fired < 0) && (sm->wait[i] >= need)) {
             fired = (int16_t)i;
         }

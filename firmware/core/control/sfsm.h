@@ -78,13 +78,13 @@ typedef enum {
 /// Transition actions (state entry actions are per state, see sfsm_state_info).
 typedef enum {
     SFSM_A_NONE = 0,
-    SFSM_A_RESTART,   ///< search direction back to the initial one, reversal count 0
-    SFSM_A_REVERSE,   ///< reverse the search direction, count the reversal
-    SFSM_A_DECLARE,   ///< isolation reference := dominant track, its recent mean SNR here, depth
-    SFSM_A_RESTORE,   ///< keep the original isolation reference
-    SFSM_A_ADOPT,     ///< reference track := dominant track; reference SNR and depth kept
-    SFSM_A_TURN,      ///< reverse the search direction (not a window-edge reversal), best SNR := now
-    SFSM_A_LEASH,     ///< reverse the search direction, count the leash turn
+    SFSM_A_RESTART,  ///< search direction back to the initial one, reversal count 0
+    SFSM_A_REVERSE,  ///< reverse the search direction, count the reversal
+    SFSM_A_DECLARE,  ///< isolation reference := dominant track, its recent mean SNR here, depth
+    SFSM_A_RESTORE,  ///< keep the original isolation reference
+    SFSM_A_ADOPT,    ///< reference track := dominant track; reference SNR and depth kept
+    SFSM_A_TURN,     ///< reverse the search direction (not a window-edge reversal), best SNR := now
+    SFSM_A_LEASH,    ///< reverse the search direction, count the leash turn
     SFSM_ACTION_COUNT
 } sfsm_action_t;
 
@@ -102,7 +102,7 @@ typedef enum {
     SFSM_R_CONVERGED_HOLD,  ///< eq. 2.1 converged, waiting for the isolation conditions
     SFSM_R_LOW_IQM_HOLD,    ///< Ω0: the gradient is not followed
     SFSM_R_NO_DOMINANT_HOLD,
-    SFSM_R_RETRACT,         ///< -Δresample
+    SFSM_R_RETRACT,  ///< -Δresample
     SFSM_REASON_COUNT
 } sfsm_reason_t;
 
@@ -136,36 +136,36 @@ typedef struct {
     double snr_min;           ///< a track below this SNR is noise floor, never dominant (default 9, ours)
     uint8_t wait_r;           ///< R of WAIT transitions (default 3)
     uint8_t lost_cycles;      ///< cycles without a dominant track before Spike Search (default 5)
-    double search_span_um;    ///< Spike Search turns this far past the last dominant track (default 100, 0: never; ours)
-    int8_t initial_dir;       ///< first search direction: +1 advance (default), -1 retract
+    double search_span_um;  ///< Spike Search turns this far past the last dominant track (default 100, 0: never; ours)
+    int8_t initial_dir;     ///< first search direction: +1 advance (default), -1 retract
 } sfsm_config_t;
 
 /// Inputs of one cycle.
 typedef struct {
-    bool has_dominant;          ///< a dominant track exists this interval (the SFSM
-                                ///< ignores it while snr < cfg.snr_min: noise floor)
-    uint32_t dominant_track;    ///< its MHTC track ID
-    double snr;                 ///< its SNR (finite when has_dominant)
-    double iqm;                 ///< its isolation distance ID_g (finite when has_dominant)
-    bool spikes_seen;           ///< detections above the minimum firing rate
-    double depth_um;            ///< current depth
-    double depth_min_um;        ///< window, shallow end (< depth_max_um)
-    double depth_max_um;        ///< window, deep end
-    bool estop;                 ///< e-stop latched
-    bool fault;                 ///< any fault the application reports
-    bool resume;                ///< operator's resume request (HALTED / WINDOW_LIMIT)
-    sc_suggestion_t suggestion; ///< sc_curve_suggest() of the dominant track's curve at depth_um
+    bool has_dominant;           ///< a dominant track exists this interval (the SFSM
+                                 ///< ignores it while snr < cfg.snr_min: noise floor)
+    uint32_t dominant_track;     ///< its MHTC track ID
+    double snr;                  ///< its SNR (finite when has_dominant)
+    double iqm;                  ///< its isolation distance ID_g (finite when has_dominant)
+    bool spikes_seen;            ///< detections above the minimum firing rate
+    double depth_um;             ///< current depth
+    double depth_min_um;         ///< window, shallow end (< depth_max_um)
+    double depth_max_um;         ///< window, deep end
+    bool estop;                  ///< e-stop latched
+    bool fault;                  ///< any fault the application reports
+    bool resume;                 ///< operator's resume request (HALTED / WINDOW_LIMIT)
+    sc_suggestion_t suggestion;  ///< sc_curve_suggest() of the dominant track's curve at depth_um
 } sfsm_input_t;
 
 /// Result of one cycle.
 typedef struct {
-    sfsm_state_t state;      ///< state after this cycle
-    sfsm_state_t from;       ///< state before it
-    int16_t row;             ///< index of the row that fired, -1 if none
-    double step_um;          ///< requested step, |step_um| <= Δmax, 0 in non-moving states
+    sfsm_state_t state;  ///< state after this cycle
+    sfsm_state_t from;   ///< state before it
+    int16_t row;         ///< index of the row that fired, -1 if none
+    double step_um;      ///< requested step, |step_um| <= Δmax, 0 in non-moving states
     sfsm_reason_t reason;
-    bool clamped;            ///< the step was shortened to stay inside the depth window
-    bool reset_curve;        ///< caller: sc_table_reset_track(reset_track) (Re-Estimate entry)
+    bool clamped;      ///< the step was shortened to stay inside the depth window
+    bool reset_curve;  ///< caller: sc_table_reset_track(reset_track) (Re-Estimate entry)
     uint32_t reset_track;
 } sfsm_output_t;
 
@@ -173,25 +173,25 @@ typedef struct {
 typedef struct {
     sfsm_config_t cfg;
     sfsm_state_t state;
-    int8_t search_dir;               ///< +1 / -1
-    uint8_t reversals;               ///< window-edge reversals since the last progress
-    bool has_ref;                    ///< isolation reference held (only in the isolated modes)
+    int8_t search_dir;  ///< +1 / -1
+    uint8_t reversals;  ///< window-edge reversals since the last progress
+    bool has_ref;       ///< isolation reference held (only in the isolated modes)
     uint32_t ref_track;
-    double ref_snr;                  ///< SNR at isolation (mean over the last R cycles)
+    double ref_snr;  ///< SNR at isolation (mean over the last R cycles)
     double ref_depth_um;
-    uint8_t wait[SFSM_ROWS_MAX];     ///< consecutive-cycle counters, one per table row
-    double recent_snr[SFSM_R_MAX];   ///< last SNRs of recent_track, all at recent_depth_um
+    uint8_t wait[SFSM_ROWS_MAX];    ///< consecutive-cycle counters, one per table row
+    double recent_snr[SFSM_R_MAX];  ///< last SNRs of recent_track, all at recent_depth_um
     uint8_t recent_n;
     uint8_t recent_head;
     uint32_t recent_track;
-    double recent_depth_um;          ///< depth of those SNRs (a move restarts the window)
+    double recent_depth_um;  ///< depth of those SNRs (a move restarts the window)
     uint32_t cycles;
     uint32_t transitions;
-    uint32_t bad_inputs;             ///< cycles rejected by input validation
-    double seek_best_snr;            ///< best dominant SNR since Gradient Search was entered / turned
-    bool has_anchor;                 ///< a dominant track has been seen
-    double anchor_um;                ///< depth where a dominant track was last seen
-    uint8_t leash_turns;             ///< leash turns since the anchor was set (at most SFSM_LEASH_TURNS)
+    uint32_t bad_inputs;   ///< cycles rejected by input validation
+    double seek_best_snr;  ///< best dominant SNR since Gradient Search was entered / turned
+    bool has_anchor;       ///< a dominant track has been seen
+    double anchor_um;      ///< depth where a dominant track was last seen
+    uint8_t leash_turns;   ///< leash turns since the anchor was set (at most SFSM_LEASH_TURNS)
 } sfsm_t;
 
 /// Documented defaults.

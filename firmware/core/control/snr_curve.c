@@ -286,8 +286,7 @@ md_status_t sc_curve_observe(sc_curve_t *curve, const sc_config_t *cfg, double d
 
 md_status_t sc_curve_fit(const sc_curve_t *curve, uint8_t m, double *coef, double *centre_um, double *scale_um)
 {
-    if ((curve == NULL) || (coef == NULL) || (centre_um == NULL) || (scale_um == NULL) || (m < 1u) ||
-        (m > SC_M_MAX)) {
+    if ((curve == NULL) || (coef == NULL) || (centre_um == NULL) || (scale_um == NULL) || (m < 1u) || (m > SC_M_MAX)) {
         return MD_E_ARG;
     }
     if ((curve->count < m) || (sc_distinct_depths(curve) < m)) {
@@ -498,8 +497,8 @@ static sc_slot_t *sc_table_claim(sc_table_t *table, uint32_t track_id)
     return s;
 }
 
-md_status_t sc_table_observe(sc_table_t *table, const sc_config_t *cfg, uint32_t track_id, double depth_um,
-                             double snr, sc_curve_t **curve_out)
+md_status_t sc_table_observe(sc_table_t *table, const sc_config_t *cfg, uint32_t track_id, double depth_um, double snr,
+                             sc_curve_t **curve_out)
 {
     if (table == NULL) {
         return MD_E_ARG;

@@ -41,17 +41,17 @@ _Static_assert(SC_TABLE_SLOTS >= 1u && SC_TABLE_SLOTS <= 16u, "a small fixed tab
 
 /// Tunables of the optimiser; sc_config_default() gives the documented values.
 typedef struct {
-    uint8_t m_max;            ///< orders considered: 1..m_max (<= SC_M_MAX); default SC_M_MAX
-    uint8_t k0;               ///< observations before the first model selection (thesis: 3)
-    double gain_c;            ///< C of eq. 2.1 (> 0); default 1 (plain Newton)
-    double tol_um;            ///< ε: converged when C|H|^-1|ξ| < ε; default 2.5 µm
-    double step_max_um;       ///< Δmax: cap of every step; default 30 µm
-    double step_sample_um;    ///< Δsample: the m* = 1 step; default 10 µm
-    double depth_scale_um;    ///< L: depth unit of the coefficient prior, x = (u - ū)/L; default 50 µm
-    double coef_prior_sd;     ///< τ: prior sd of b_2..b_m in units of the noise sd σ; default 5
-    double noise_prior_sd;    ///< σ0: scale of the inverse-gamma prior on σ² (SNR units); default 0.5
-    double noise_prior_a0;    ///< a0 (shape) of that prior, = half its pseudo-observations; default 1
-    double model_floor;       ///< each order keeps >= floor/m_max of prior mass; default 0.01
+    uint8_t m_max;          ///< orders considered: 1..m_max (<= SC_M_MAX); default SC_M_MAX
+    uint8_t k0;             ///< observations before the first model selection (thesis: 3)
+    double gain_c;          ///< C of eq. 2.1 (> 0); default 1 (plain Newton)
+    double tol_um;          ///< ε: converged when C|H|^-1|ξ| < ε; default 2.5 µm
+    double step_max_um;     ///< Δmax: cap of every step; default 30 µm
+    double step_sample_um;  ///< Δsample: the m* = 1 step; default 10 µm
+    double depth_scale_um;  ///< L: depth unit of the coefficient prior, x = (u - ū)/L; default 50 µm
+    double coef_prior_sd;   ///< τ: prior sd of b_2..b_m in units of the noise sd σ; default 5
+    double noise_prior_sd;  ///< σ0: scale of the inverse-gamma prior on σ² (SNR units); default 0.5
+    double noise_prior_a0;  ///< a0 (shape) of that prior, = half its pseudo-observations; default 1
+    double model_floor;     ///< each order keeps >= floor/m_max of prior mass; default 0.01
 } sc_config_t;
 
 /// One curve: bounded history plus the recursive order posterior.
@@ -69,15 +69,15 @@ typedef struct {
 
 /// What the optimiser proposes for the current position.
 typedef struct {
-    bool ready;            ///< at least k0 observations: model selection ran
-    uint8_t m_star;        ///< most probable admissible order (0 when not ready)
-    double post_m_star;    ///< its posterior probability
-    double xi;             ///< ξ: slope M'(u_k), SNR per µm (0 when m* = 1)
-    double h;              ///< H: curvature M''(u_k), SNR per µm² (0 when m* <= 2)
-    double newton_um;      ///< signed uncapped step of eq. 2.1 (0 unless m* >= 3)
-    double step_um;        ///< signed proposed step, |step| <= Δmax
-    bool converged;        ///< m* >= 3 and |newton_um| < ε (then step_um = 0)
-    double peak_snr;       ///< fitted M(u_k) at the current position
+    bool ready;          ///< at least k0 observations: model selection ran
+    uint8_t m_star;      ///< most probable admissible order (0 when not ready)
+    double post_m_star;  ///< its posterior probability
+    double xi;           ///< ξ: slope M'(u_k), SNR per µm (0 when m* = 1)
+    double h;            ///< H: curvature M''(u_k), SNR per µm² (0 when m* <= 2)
+    double newton_um;    ///< signed uncapped step of eq. 2.1 (0 unless m* >= 3)
+    double step_um;      ///< signed proposed step, |step| <= Δmax
+    bool converged;      ///< m* >= 3 and |newton_um| < ε (then step_um = 0)
+    double peak_snr;     ///< fitted M(u_k) at the current position
 } sc_suggestion_t;
 
 /// Documented defaults (see the field comments and docs/snr-curve.md).
@@ -122,17 +122,17 @@ md_status_t sc_curve_suggest(const sc_curve_t *curve, const sc_config_t *cfg, do
 /// One slot of the per-electrode table.
 typedef struct {
     bool used;
-    uint32_t track_id;       ///< MHTC track ID (stable, never reused)
-    uint32_t last_stamp;     ///< table clock at the last observation (for LRU eviction)
+    uint32_t track_id;    ///< MHTC track ID (stable, never reused)
+    uint32_t last_stamp;  ///< table clock at the last observation (for LRU eviction)
     sc_curve_t curve;
 } sc_slot_t;
 
 /// Per-electrode table of curves keyed by track ID.
 typedef struct {
     sc_slot_t slot[SC_TABLE_SLOTS];
-    uint32_t clock;          ///< incremented by every observation
-    uint32_t evictions;      ///< curves dropped to make room
-    uint32_t errors;         ///< failed observations
+    uint32_t clock;      ///< incremented by every observation
+    uint32_t evictions;  ///< curves dropped to make room
+    uint32_t errors;     ///< failed observations
 } sc_table_t;
 
 /// Empties the table and its counters. O(SC_TABLE_SLOTS · SC_HIST_MAX).
@@ -146,8 +146,8 @@ sc_curve_t *sc_table_find(sc_table_t *table, uint32_t track_id);
 /// track (lowest last_stamp; ties to the lowest slot index), which is reset
 /// and counted in `evictions`. *curve_out (may be NULL) receives the curve.
 /// Errors as sc_curve_observe (counted in `errors`). O(SC_TABLE_SLOTS + observe).
-md_status_t sc_table_observe(sc_table_t *table, const sc_config_t *cfg, uint32_t track_id, double depth_um,
-                             double snr, sc_curve_t **curve_out);
+md_status_t sc_table_observe(sc_table_t *table, const sc_config_t *cfg, uint32_t track_id, double depth_um, double snr,
+                             sc_curve_t **curve_out);
 
 /// Restarts track_id's curve (e.g. on Re-Estimate Gradient, when its old
 /// observations no longer describe the drifted neuron). MD_E_STATE if the

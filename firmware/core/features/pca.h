@@ -39,18 +39,18 @@
 
 /// A PCA basis of one interval.
 typedef struct {
-    size_t d;                                          ///< feature dimension, 1..MD_FEAT_DIM_MAX
-    size_t d_w;                                        ///< waveform length
-    double b[MD_FEAT_DIM_MAX * MD_WAVE_LEN_MAX];       ///< B, row-major d × d_w in the first d*d_w entries
-    double eigval[MD_FEAT_DIM_MAX];                    ///< variance along each row of B, descending
-    double total_var;                                  ///< trace of the covariance (all d_w eigenvalues)
-    double mean[MD_WAVE_LEN_MAX];                      ///< sample mean waveform (informational)
+    size_t d;                                     ///< feature dimension, 1..MD_FEAT_DIM_MAX
+    size_t d_w;                                   ///< waveform length
+    double b[MD_FEAT_DIM_MAX * MD_WAVE_LEN_MAX];  ///< B, row-major d × d_w in the first d*d_w entries
+    double eigval[MD_FEAT_DIM_MAX];               ///< variance along each row of B, descending
+    double total_var;                             ///< trace of the covariance (all d_w eigenvalues)
+    double mean[MD_WAVE_LEN_MAX];                 ///< sample mean waveform (informational)
 } pca_basis_t;
 
 /// Scratch storage of pca_fit (caller-owned, ~22 kB at d_w = 48).
 typedef struct {
     double cov[MD_WAVE_LEN_MAX * MD_WAVE_LEN_MAX];
-    double vecs[MD_FEAT_DIM_MAX * MD_WAVE_LEN_MAX]; ///< leading eigenvectors, one per row
+    double vecs[MD_FEAT_DIM_MAX * MD_WAVE_LEN_MAX];  ///< leading eigenvectors, one per row
     double vals[MD_FEAT_DIM_MAX];
     eigen_top_work_t eig;
 } pca_work_t;

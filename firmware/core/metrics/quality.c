@@ -7,7 +7,7 @@
 
 #include "common/linalg.h"
 
-#define QM_MAX_POINTS (1u << 20)  /* bound on n + m: every loop below is O(points) */
+#define QM_MAX_POINTS (1u << 20) /* bound on n + m: every loop below is O(points) */
 
 md_status_t qm_noise_rms(const double *noise, size_t m, size_t stride, size_t d_w, double *rms)
 {
@@ -38,8 +38,8 @@ md_status_t qm_noise_rms(const double *noise, size_t m, size_t stride, size_t d_
 md_status_t qm_snr(const double *wave, size_t n, size_t stride, size_t d_w, const uint8_t *labels, uint8_t label,
                    double noise_rms, double *snr, size_t *n_members)
 {
-    if ((wave == NULL) || (snr == NULL) || (d_w == 0u) || (stride < d_w) || (n > QM_MAX_POINTS) ||
-        !(noise_rms > 0.0) || !isfinite(noise_rms)) {
+    if ((wave == NULL) || (snr == NULL) || (d_w == 0u) || (stride < d_w) || (n > QM_MAX_POINTS) || !(noise_rms > 0.0) ||
+        !isfinite(noise_rms)) {
         return MD_E_ARG;
     }
     double sum_ptp = 0.0;
@@ -212,8 +212,7 @@ md_status_t qm_isolation_distance(const double *y, size_t n, size_t d, const uin
     return isfinite(out->id2) ? MD_OK : MD_E_NUMERIC;
 }
 
-md_status_t qm_noise_feature_cov(const pca_basis_t *basis, const double *noise, size_t m, size_t stride,
-                                 double *xi)
+md_status_t qm_noise_feature_cov(const pca_basis_t *basis, const double *noise, size_t m, size_t stride, double *xi)
 {
     double mu[MD_FEAT_DIM_MAX];
     double yv[MD_FEAT_DIM_MAX];
@@ -253,8 +252,8 @@ md_status_t qm_noise_feature_cov(const pca_basis_t *basis, const double *noise, 
 
 md_status_t qm_noise_rms_i16(const int16_t *noise, size_t m, size_t stride, size_t d_w, double gain, double *rms)
 {
-    if ((noise == NULL) || (rms == NULL) || (d_w == 0u) || (stride < d_w) || (m > QM_MAX_POINTS) ||
-        !(gain > 0.0) || !isfinite(gain)) {
+    if ((noise == NULL) || (rms == NULL) || (d_w == 0u) || (stride < d_w) || (m > QM_MAX_POINTS) || !(gain > 0.0) ||
+        !isfinite(gain)) {
         return MD_E_ARG;
     }
     if (m == 0u) {
@@ -278,8 +277,8 @@ md_status_t qm_noise_rms_i16(const int16_t *noise, size_t m, size_t stride, size
 md_status_t qm_snr_i16(const int16_t *wave, size_t n, size_t stride, size_t d_w, double gain, const uint8_t *labels,
                        uint8_t label, double noise_rms, double *snr, size_t *n_members)
 {
-    if ((wave == NULL) || (snr == NULL) || (d_w == 0u) || (stride < d_w) || (n > QM_MAX_POINTS) ||
-        !(noise_rms > 0.0) || !isfinite(noise_rms) || !(gain > 0.0) || !isfinite(gain)) {
+    if ((wave == NULL) || (snr == NULL) || (d_w == 0u) || (stride < d_w) || (n > QM_MAX_POINTS) || !(noise_rms > 0.0) ||
+        !isfinite(noise_rms) || !(gain > 0.0) || !isfinite(gain)) {
         return MD_E_ARG;
     }
     uint64_t sum_ptp = 0u;

@@ -63,8 +63,7 @@ md_status_t qm_feature_cov(const double *y, size_t m, size_t d, double *mean, do
 /// Remark 3.2 outlier component), d×d in xi. Checked positive definite:
 /// MD_E_DEGENERATE if m < d + 1, MD_E_NUMERIC if Ξ is singular. Two passes,
 /// no storage beyond xi: O(m d d_w).
-md_status_t qm_noise_feature_cov(const pca_basis_t *basis, const double *noise, size_t m, size_t stride,
-                                 double *xi);
+md_status_t qm_noise_feature_cov(const pca_basis_t *basis, const double *noise, size_t m, size_t stride, double *xi);
 
 /* Compact inputs (spike_extract.h: int16 counts, physical value = gain *
  * count): same results as the double entry points on the converted rows. */

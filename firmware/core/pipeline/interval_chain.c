@@ -152,9 +152,16 @@ md_status_t ic_track(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um)
     if (ws->stage >= IC_FEATURES) {
         /* The tracker reads the int16 windows through the gain: no double
          * copy of them. Firing rates over the samples actually pushed. */
-        const mhtc_input_t in = {ws->y, ws->n_spikes, NULL, MD_WAVE_LEN_MAX, &ws->basis, ws->xi,
-                                 (double)ws->n_pushed / (double)ws->cfg.sample_rate_hz, &ws->win.wave[0][0],
-                                 ws->win.gain, move_um};
+        const mhtc_input_t in = {ws->y,
+                                 ws->n_spikes,
+                                 NULL,
+                                 MD_WAVE_LEN_MAX,
+                                 &ws->basis,
+                                 ws->xi,
+                                 (double)ws->n_pushed / (double)ws->cfg.sample_rate_hz,
+                                 &ws->win.wave[0][0],
+                                 ws->win.gain,
+                                 move_um};
         st = mhtc_step(tracker, &in, &ws->u.mhtc, &ws->res);
     }
     return stage_done(ws, st, &ws->stats.track_errors, IC_TRACKED);
@@ -193,8 +200,8 @@ static void score_tracks(ic_workspace_t *ws, ic_out_t *out)
         double snr = 0.0;
         const uint8_t cl = r->track[j].cluster;
         if (cl > 0u && ws->n_spikes > 0u &&
-            qm_snr_i16(&w->wave[0][0], ws->n_spikes, MD_WAVE_LEN_MAX, w->d_w, w->gain, r->labels, cl,
-                       ws->noise_rms_uv, &snr, NULL) != MD_OK) {
+            qm_snr_i16(&w->wave[0][0], ws->n_spikes, MD_WAVE_LEN_MAX, w->d_w, w->gain, r->labels, cl, ws->noise_rms_uv,
+                       &snr, NULL) != MD_OK) {
             snr = 0.0;
             ws->stats.snr_undefined++;
         }

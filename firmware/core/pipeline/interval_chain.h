@@ -65,8 +65,8 @@
 #include "signal/spike_pipeline.h"
 #include "tracking/mhtc.h"
 
-#define IC_D 2u                      ///< PCA feature dimension d (thesis: 2-D features)
-#define IC_SNIPPET_CANDIDATES 4u     ///< noise candidates drawn per wanted snippet (spike_extract.h spacing)
+#define IC_D 2u                   ///< PCA feature dimension d (thesis: 2-D features)
+#define IC_SNIPPET_CANDIDATES 4u  ///< noise candidates drawn per wanted snippet (spike_extract.h spacing)
 _Static_assert(IC_D <= MD_FEAT_DIM_MAX, "feature dimension within the configured capacity");
 _Static_assert(MD_MAX_SPIKES <= EM_N_MAX, "every window fits the tracker's input");
 
@@ -83,14 +83,14 @@ typedef struct {
 
 /// What the interval says, for the decision and the telemetry (ic_score).
 typedef struct {
-    uint32_t n_windows;       ///< windows cut (every detection kept; the telemetry's spikes)
-    uint32_t n_spikes;        ///< windows given to the tracker (0 when fewer than 2 were cut)
+    uint32_t n_windows;  ///< windows cut (every detection kept; the telemetry's spikes)
+    uint32_t n_spikes;   ///< windows given to the tracker (0 when fewer than 2 were cut)
     bool has_dominant;
-    uint32_t dominant;        ///< its track id
-    uint8_t dominant_cluster; ///< its cluster in the leading model (1..G)
-    double snr;               ///< its SNR (peak-to-peak / noise RMS)
-    double iqm;               ///< its isolation distance ID_g (sqrt), 0 if undefined
-    double amp;               ///< robust amplitude of all windows (approach guard), noise RMS units
+    uint32_t dominant;         ///< its track id
+    uint8_t dominant_cluster;  ///< its cluster in the leading model (1..G)
+    double snr;                ///< its SNR (peak-to-peak / noise RMS)
+    double iqm;                ///< its isolation distance ID_g (sqrt), 0 if undefined
+    double amp;                ///< robust amplitude of all windows (approach guard), noise RMS units
 } ic_out_t;
 
 /// Failures, counted over the workspace's life (nothing is dropped silently).
@@ -110,25 +110,25 @@ typedef struct {
 typedef struct {
     /// Storage of stages that never overlap in time.
     union {
-        sp_channel_t sp;      ///< stages 1-2: streaming detector and extractor
-        pca_work_t pca;       ///< stage 3: PCA scratch
-        mhtc_workspace_t mhtc; ///< stage 4, and mhtc_hyp_labels after it until ic_score/ic_isolation
-        double qm_work[(MD_MAX_SPIKES + MD_MAX_NOISE_SNIPPETS) * IC_D]; ///< stage 5: isolation scratch
+        sp_channel_t sp;        ///< stages 1-2: streaming detector and extractor
+        pca_work_t pca;         ///< stage 3: PCA scratch
+        mhtc_workspace_t mhtc;  ///< stage 4, and mhtc_hyp_labels after it until ic_score/ic_isolation
+        double qm_work[(MD_MAX_SPIKES + MD_MAX_NOISE_SNIPPETS) * IC_D];  ///< stage 5: isolation scratch
     } u;
-    sx_windows_t win;                                 ///< aligned spike windows (int16; t: sample of each minimum)
-    sx_snippets_t noise;                              ///< spike-free noise snippets (int16)
-    double y[MD_MAX_SPIKES * IC_D];                   ///< spike features, n_spikes × d
-    double noise_y[MD_MAX_NOISE_SNIPPETS * IC_D];     ///< noise features, noise.n × d
-    double xi[IC_D * IC_D];                           ///< Ξ
-    pca_basis_t basis;                                ///< B^k
-    mhtc_result_t res;                                ///< leading hypothesis of the interval (ic_track)
-    double track_snr[MHTC_TARGETS_MAX];               ///< SNR per reported track of res (0 if missed; ic_score)
-    double noise_rms_uv;                              ///< RMS of the noise snippets (ic_features)
-    double amp;                                       ///< robust amplitude (ic_features)
-    uint32_t n_spikes;                                ///< windows given to the tracker (ic_features)
-    uint32_t n_pushed;                                ///< samples pushed in this interval
-    ic_config_t cfg;                                  ///< of the current interval
-    int stage;                                        ///< private: the last stage completed
+    sx_windows_t win;                              ///< aligned spike windows (int16; t: sample of each minimum)
+    sx_snippets_t noise;                           ///< spike-free noise snippets (int16)
+    double y[MD_MAX_SPIKES * IC_D];                ///< spike features, n_spikes × d
+    double noise_y[MD_MAX_NOISE_SNIPPETS * IC_D];  ///< noise features, noise.n × d
+    double xi[IC_D * IC_D];                        ///< Ξ
+    pca_basis_t basis;                             ///< B^k
+    mhtc_result_t res;                             ///< leading hypothesis of the interval (ic_track)
+    double track_snr[MHTC_TARGETS_MAX];            ///< SNR per reported track of res (0 if missed; ic_score)
+    double noise_rms_uv;                           ///< RMS of the noise snippets (ic_features)
+    double amp;                                    ///< robust amplitude (ic_features)
+    uint32_t n_spikes;                             ///< windows given to the tracker (ic_features)
+    uint32_t n_pushed;                             ///< samples pushed in this interval
+    ic_config_t cfg;                               ///< of the current interval
+    int stage;                                     ///< private: the last stage completed
     ic_stats_t stats;
 } ic_workspace_t;
 

@@ -32,8 +32,7 @@ size_t rs_rank_bin(const uint32_t *bins, size_t n_bins, uint64_t k, uint64_t *be
 
 uint32_t rs_abs_kth_i16(const int16_t *x, size_t n, int32_t offset, size_t k, rs_hist_t *work)
 {
-    if ((x == NULL) || (work == NULL) || (k >= n) || (n > RS_MAX_N) || (offset < -32768) ||
-        (offset > 32767)) {
+    if ((x == NULL) || (work == NULL) || (k >= n) || (n > RS_MAX_N) || (offset < -32768) || (offset > 32767)) {
         return 0u;
     }
     /* |x - offset| <= 65535: the coarse level is the high byte. */
@@ -87,8 +86,9 @@ static void rs_abs_kth2_i16(const int16_t *x, size_t n, int32_t offset, size_t k
         }
     }
     const size_t fine0 = rs_rank_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k - before[0], NULL);
-    const size_t fine1 =
-        (coarse1 == coarse0) ? rs_rank_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k + 1u - before[1], NULL) : least;
+    const size_t fine1 = (coarse1 == coarse0)
+                             ? rs_rank_bin(work->bins, RS_LEVEL_BINS, (uint64_t)k + 1u - before[1], NULL)
+                             : least;
     const uint32_t c0 = (uint32_t)coarse0;
     const uint32_t c1 = (uint32_t)coarse1;
     *lo = (c0 << 8u) | (uint32_t)fine0;

@@ -13,7 +13,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define RS_LEVEL_BINS 256u  ///< bins per histogram level; 256 * 256 covers |int16 - int16|
+#define RS_LEVEL_BINS 256u   ///< bins per histogram level; 256 * 256 covers |int16 - int16|
 #define RS_MAX_N (1u << 28)  ///< most values per call (32-bit bin counts cannot overflow)
 
 /// Caller-owned histogram storage for rs_abs_kth_i16 / rs_abs_median_i16.

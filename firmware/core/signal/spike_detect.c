@@ -9,10 +9,10 @@
 #define SD_PHASE_WARMUP 1
 #define SD_PHASE_REPLAY 2
 #define SD_PHASE_RUN 3
-#define SD_PHASE_ENDED 4  /* input ended, replay (if any) pending or done */
+#define SD_PHASE_ENDED 4 /* input ended, replay (if any) pending or done */
 #define SD_PHASE_DONE 5
 
-#define SD_MAD_TO_SIGMA 0.6745  /* median(|N(0,1)|): robust sigma = MAD / 0.6745 */
+#define SD_MAD_TO_SIGMA 0.6745 /* median(|N(0,1)|): robust sigma = MAD / 0.6745 */
 /* Nenadic & Burdick's reference code scales the user's L in [-0.2, 0.2] by
  * ln of the largest cost ratio double precision can express (about 36.74), so
  * L = +-0.2 moves ln(cost ratio) by about +-7.3. */
@@ -69,10 +69,8 @@ static int sd_config_valid(const sd_config_t *c)
     case SD_METHOD_WAVELET:
         return common && ((c->wavelet == SD_WAVELET_MEXHAT) || (c->wavelet == SD_WAVELET_DOG1)) &&
                sd_in(c->width_min_ms, 0.05, 5.0) && sd_in(c->width_max_ms, c->width_min_ms, 5.0) &&
-               (c->n_scales >= 1u) && (c->n_scales <= MD_WAVELET_SCALES_MAX) &&
-               sd_in(c->cost_ratio_l, -0.2, 0.2);
-    default:
-        return 0;
+               (c->n_scales >= 1u) && (c->n_scales <= MD_WAVELET_SCALES_MAX) && sd_in(c->cost_ratio_l, -0.2, 0.2);
+    default: return 0;
     }
 }
 
@@ -636,36 +634,16 @@ static bool sd_scan_full(const uint32_t *q, size_t w, uint8_t kind, uint32_t lo)
 {
     bool r;
     switch (kind) {
-    case (uint8_t)SD_SCAN_MEX_1:
-        r = sd_scan_step(q, w, true, 1u, lo);
-        break;
-    case (uint8_t)SD_SCAN_MEX_2:
-        r = sd_scan_step(q, w, true, 2u, lo);
-        break;
-    case (uint8_t)SD_SCAN_DOG_1:
-        r = sd_scan_step(q, w, false, 1u, lo);
-        break;
-    case (uint8_t)SD_SCAN_CHAIN_4:
-        r = sd_scan_chain(q, 4u, lo);
-        break;
-    case (uint8_t)SD_SCAN_CHAIN_6:
-        r = sd_scan_chain(q, 6u, lo);
-        break;
-    case (uint8_t)SD_SCAN_CHAIN_8:
-        r = sd_scan_chain(q, 8u, lo);
-        break;
-    case (uint8_t)SD_SCAN_CHAIN_10:
-        r = sd_scan_chain(q, 10u, lo);
-        break;
-    case (uint8_t)SD_SCAN_CHAIN_12:
-        r = sd_scan_chain(q, 12u, lo);
-        break;
-    case (uint8_t)SD_SCAN_CHAIN_16:
-        r = sd_scan_chain(q, 16u, lo);
-        break;
-    default:
-        r = sd_scan_step(q, w, false, 2u, lo);
-        break;
+    case (uint8_t)SD_SCAN_MEX_1: r = sd_scan_step(q, w, true, 1u, lo); break;
+    case (uint8_t)SD_SCAN_MEX_2: r = sd_scan_step(q, w, true, 2u, lo); break;
+    case (uint8_t)SD_SCAN_DOG_1: r = sd_scan_step(q, w, false, 1u, lo); break;
+    case (uint8_t)SD_SCAN_CHAIN_4: r = sd_scan_chain(q, 4u, lo); break;
+    case (uint8_t)SD_SCAN_CHAIN_6: r = sd_scan_chain(q, 6u, lo); break;
+    case (uint8_t)SD_SCAN_CHAIN_8: r = sd_scan_chain(q, 8u, lo); break;
+    case (uint8_t)SD_SCAN_CHAIN_10: r = sd_scan_chain(q, 10u, lo); break;
+    case (uint8_t)SD_SCAN_CHAIN_12: r = sd_scan_chain(q, 12u, lo); break;
+    case (uint8_t)SD_SCAN_CHAIN_16: r = sd_scan_chain(q, 16u, lo); break;
+    default: r = sd_scan_step(q, w, false, 2u, lo); break;
     }
     return r;
 }
@@ -783,8 +761,8 @@ typedef struct {
  * counts the low byte of those in coarse bin b[0] and keeps the least low
  * byte of those in coarse bin b[1] (SD_NONE when both ranks share a coarse
  * bin). `mexhat` and whether b is NULL are literals at each call. */
-static inline void sd_warm_bin_loop(const uint32_t *q, uint32_t w, bool mexhat, uint32_t i, uint32_t k,
-                                    uint32_t shift, const size_t *b, uint32_t *bins, uint32_t *fmin)
+static inline void sd_warm_bin_loop(const uint32_t *q, uint32_t w, bool mexhat, uint32_t i, uint32_t k, uint32_t shift,
+                                    const size_t *b, uint32_t *bins, uint32_t *fmin)
 {
     const uint32_t b0 = (b != NULL) ? (uint32_t)b[0] : 0u;
     const uint32_t b1 = (b != NULL) ? (uint32_t)b[1] : 0u;
@@ -922,8 +900,8 @@ static int sd_wavelet_stats(sd_stream_t *st)
         /* The kernel sums to zero exactly, so mean(c) over the warm-up is a
          * boundary term of order range/N: it is taken as 0. A zero-sum kernel
          * bounds |c| by L1/2 * (max x - min x), which sets the bin shift. */
-        const uint64_t range =
-            ((uint64_t)st->kl1[s] / 2u + 1u) * (uint64_t)((int64_t)st->warm_max - (int64_t)st->warm_min + 1);
+        const uint64_t range = ((uint64_t)st->kl1[s] / 2u + 1u) *
+                               (uint64_t)((int64_t)st->warm_max - (int64_t)st->warm_min + 1);
         for (unsigned k = 0u; (k < 32u) && ((range >> w.shift[s]) > 0xFFFFu); ++k) {
             w.shift[s]++;
         }
@@ -1041,7 +1019,7 @@ static void sd_step_runs(sd_stream_t *st, uint32_t n0, uint32_t i0, uint32_t k, 
             sd_run_edge(st, n0 + i - st->dmax, true); /* a run starts */
         } else {
             const uint32_t gaps = ~hits & valid & from;
-            const uint32_t end = (gaps != 0u) ? sd_lowest_bit(gaps) : k;   /* first centre without a hit */
+            const uint32_t end = (gaps != 0u) ? sd_lowest_bit(gaps) : k;            /* first centre without a hit */
             const uint32_t left = SD_RUN_MAX - (n0 + i - st->dmax - st->run_start); /* centres to the split */
             if ((n0 + i - st->dmax - st->run_start >= SD_RUN_MAX) || (left < end - i)) {
                 i = ((n0 + i - st->dmax - st->run_start) >= SD_RUN_MAX) ? i : (i + left);
@@ -1231,8 +1209,7 @@ md_status_t sd_stream_push(sd_stream_t *st, const int16_t *x, size_t n, size_t *
     if (st->phase == SD_PHASE_RUN) { /* the common case: warm-up replayed, status MD_OK */
         return sd_run_some(st, x, n, used);
     }
-    if ((st->phase == SD_PHASE_IDLE) || (st->phase == SD_PHASE_DONE) ||
-        ((st->phase == SD_PHASE_ENDED) && (n > 0u))) {
+    if ((st->phase == SD_PHASE_IDLE) || (st->phase == SD_PHASE_DONE) || ((st->phase == SD_PHASE_ENDED) && (n > 0u))) {
         return MD_E_STATE;
     }
     if (st->status < 0) {

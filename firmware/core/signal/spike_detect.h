@@ -60,7 +60,8 @@ _Static_assert(MD_WAVELET_SCALES_MAX >= 1u && MD_WAVELET_SCALES_MAX <= 16u, "1..
 _Static_assert((SD_RING_SAMPLES & (SD_RING_SAMPLES - 1u)) == 0u, "ring size is a power of two");
 _Static_assert((SD_RING_SAMPLES % SD_STEP_SAMPLES) == 0u, "a step never wraps the delay line");
 _Static_assert(SD_P2_HIST >= 4u * SD_BOX_MAX + 2u * SD_BOX_MAX, "the widest kernel and its lag fit the history");
-_Static_assert((SD_REFINE_SAMPLES % SD_STEP_SAMPLES) == 0u && SD_STEP_SAMPLES == 32u, "steps never straddle a refinement; one bit per step sample");
+_Static_assert((SD_REFINE_SAMPLES % SD_STEP_SAMPLES) == 0u && SD_STEP_SAMPLES == 32u,
+               "steps never straddle a refinement; one bit per step sample");
 _Static_assert(SD_WARMUP_MAX >= SD_RING_SAMPLES, "the delay line aliases the warm-up buffer");
 _Static_assert(4ull * SD_BOX_MAX * SD_BOX_MAX * 32768ull < 2147483648ull, "coefficients fit int32 exactly");
 _Static_assert(MD_MAX_SPIKES <= SD_MAX_INTERVAL_SAMPLES, "spike list indexes samples");
@@ -87,22 +88,23 @@ typedef enum {
 /// Detector parameters; fill with sd_config_default() and adjust.
 typedef struct {
     sd_method_t method;
-    uint32_t sample_rate_hz;   ///< 1000..200000
-    double align_ms;           ///< an event's time is moved to the minimum of x within this distance (> 0)
+    uint32_t sample_rate_hz;  ///< 1000..200000
+    double align_ms;          ///< an event's time is moved to the minimum of x within this distance (> 0)
     /* amplitude threshold detector */
-    double k_sigma;            ///< threshold in robust noise sigmas (about 4..5)
-    double dead_time_ms;       ///< crossings closer than this to an accepted event are the same event
+    double k_sigma;       ///< threshold in robust noise sigmas (about 4..5)
+    double dead_time_ms;  ///< crossings closer than this to an accepted event are the same event
     sd_polarity_t polarity;
     /* wavelet detector */
     sd_wavelet_t wavelet;
-    double width_min_ms;       ///< expected spike width range (Nenadic & Burdick: 0.5..1.0 ms)
+    double width_min_ms;  ///< expected spike width range (Nenadic & Burdick: 0.5..1.0 ms)
     double width_max_ms;
-    unsigned n_scales;         ///< 1..MD_WAVELET_SCALES_MAX, widths spaced evenly in the range
-    double cost_ratio_l;       ///< L in [-0.2, 0.2] (scaled by 36.74 as in the reference code); > 0 favours fewer false alarms
+    unsigned n_scales;  ///< 1..MD_WAVELET_SCALES_MAX, widths spaced evenly in the range
+    double
+        cost_ratio_l;  ///< L in [-0.2, 0.2] (scaled by 36.74 as in the reference code); > 0 favours fewer false alarms
     /* streaming */
-    double warmup_ms;          ///< statistics prefix, 5 ms .. SD_WARMUP_MAX samples
-    double interval_s;         ///< nominal interval length: N of the universal threshold sqrt(2 ln N)
-    bool refine;               ///< wavelet: refine M and P(spike) from every coefficient seen so far
+    double warmup_ms;   ///< statistics prefix, 5 ms .. SD_WARMUP_MAX samples
+    double interval_s;  ///< nominal interval length: N of the universal threshold sqrt(2 ln N)
+    bool refine;        ///< wavelet: refine M and P(spike) from every coefficient seen so far
 } sd_config_t;
 
 /// Result flags of one interval (bit set).
@@ -114,21 +116,21 @@ typedef struct {
 /// ascending; every event is at least the dedupe distance from its neighbours.
 typedef struct {
     uint32_t t[MD_MAX_SPIKES];
-    size_t n;                   ///< events stored
-    uint32_t n_overflow;        ///< events found but not stored (capacity)
-    uint32_t n_merged;          ///< candidates folded into a neighbouring event
-    uint32_t flags;             ///< SD_FLAG_*
-    uint32_t n_samples;         ///< samples the detection ran on
-    int32_t offset;             ///< DC offset removed (rounded mean of the warm-up), ADC counts
-    double noise_sigma;         ///< median(|x - offset|)/0.6745 over the warm-up, ADC counts
-    double threshold;           ///< amplitude detector: k * noise_sigma (0 for the wavelet detector)
-    unsigned n_scales;          ///< wavelet detector: scales used
+    size_t n;                                      ///< events stored
+    uint32_t n_overflow;                           ///< events found but not stored (capacity)
+    uint32_t n_merged;                             ///< candidates folded into a neighbouring event
+    uint32_t flags;                                ///< SD_FLAG_*
+    uint32_t n_samples;                            ///< samples the detection ran on
+    int32_t offset;                                ///< DC offset removed (rounded mean of the warm-up), ADC counts
+    double noise_sigma;                            ///< median(|x - offset|)/0.6745 over the warm-up, ADC counts
+    double threshold;                              ///< amplitude detector: k * noise_sigma (0 for the wavelet detector)
+    unsigned n_scales;                             ///< wavelet detector: scales used
     double scale_width_ms[MD_WAVELET_SCALES_MAX];  ///< spike width each scale is tuned to
     double scale_sigma[MD_WAVELET_SCALES_MAX];     ///< coefficient noise sigma per scale (unit-L2 kernel, counts)
     double scale_dth[MD_WAVELET_SCALES_MAX];       ///< Bayesian decision threshold per scale (same units), last value
     uint32_t scale_hits[MD_WAVELET_SCALES_MAX];    ///< coefficients above the hard threshold (whole interval)
-    uint32_t warmup_samples;    ///< samples the statistics came from
-    uint32_t n_cand_dropped;    ///< candidates lost because SD_CAND_MAX were waiting (never seen in practice)
+    uint32_t warmup_samples;                       ///< samples the statistics came from
+    uint32_t n_cand_dropped;  ///< candidates lost because SD_CAND_MAX were waiting (never seen in practice)
 } sd_events_t;
 
 /// Streaming detector of one channel. Caller-owned (static storage), about
@@ -143,7 +145,7 @@ typedef struct {
     int64_t warm_sum;
     int16_t warm_min;
     int16_t warm_max;
-    uint32_t n;             /* samples processed online */
+    uint32_t n; /* samples processed online */
     /* amplitude detector */
     int32_t thr_lo;
     int32_t thr_hi;
@@ -153,8 +155,8 @@ typedef struct {
     uint32_t box[MD_WAVELET_SCALES_MAX];
     uint32_t stride[MD_WAVELET_SCALES_MAX];
     uint32_t lag[MD_WAVELET_SCALES_MAX];
-    uint32_t back[MD_WAVELET_SCALES_MAX];  /* lag + span * box: P2 history a centre's oldest tap reaches back */
-    uint8_t kind[MD_WAVELET_SCALES_MAX];   /* straight-code scan body of the scale (spike_detect.c) */
+    uint32_t back[MD_WAVELET_SCALES_MAX]; /* lag + span * box: P2 history a centre's oldest tap reaches back */
+    uint8_t kind[MD_WAVELET_SCALES_MAX];  /* straight-code scan body of the scale (spike_detect.c) */
     uint32_t dmax;
     uint32_t c_first;
     double knorm[MD_WAVELET_SCALES_MAX];
@@ -171,8 +173,9 @@ typedef struct {
     uint32_t p1;
     uint32_t p2;
     uint32_t hist_len;
-    uint32_t p2_base;       /* p2lin index of the current step's first sum (>= hist_len of history before it) */
-    uint32_t p2lin[SD_P2_HIST + 10u * SD_STEP_SAMPLES];  /* running sums P2: history, then the steps since the last shift */
+    uint32_t p2_base; /* p2lin index of the current step's first sum (>= hist_len of history before it) */
+    uint32_t
+        p2lin[SD_P2_HIST + 10u * SD_STEP_SAMPLES]; /* running sums P2: history, then the steps since the last shift */
     bool in_run;
     uint32_t run_start;
     bool grp_open;
@@ -193,7 +196,7 @@ typedef struct {
     rs_hist_t rs;
     rs_hist_t rs2;
     sd_events_t ev;
-    int16_t buf[SD_WARMUP_MAX];  /* warm-up samples; its first SD_RING_SAMPLES are the delay line */
+    int16_t buf[SD_WARMUP_MAX]; /* warm-up samples; its first SD_RING_SAMPLES are the delay line */
 } sd_stream_t;
 
 /// Fills `cfg` with the defaults for `method` at `sample_rate_hz`:

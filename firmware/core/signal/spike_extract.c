@@ -30,9 +30,8 @@ void sx_config_default(sx_config_t *cfg, uint32_t sample_rate_hz)
 static int sx_config_valid(const sx_config_t *c)
 {
     return (c->d_w >= 4u) && (c->d_w <= MD_WAVE_LEN_MAX) && (c->pre_peak < c->d_w) && (c->realign <= 1000u) &&
-           (!c->subsample || (c->pre_peak >= 1u)) &&
-           (c->gain > 0.0) && isfinite(c->gain) && (c->n_noise <= MD_MAX_NOISE_SNIPPETS) &&
-           (c->guard <= 100000u) && (c->spacing <= SD_MAX_INTERVAL_SAMPLES);
+           (!c->subsample || (c->pre_peak >= 1u)) && (c->gain > 0.0) && isfinite(c->gain) &&
+           (c->n_noise <= MD_MAX_NOISE_SNIPPETS) && (c->guard <= 100000u) && (c->spacing <= SD_MAX_INTERVAL_SAMPLES);
 }
 
 /* ---- window cutter (shared) --------------------------------------------- */
@@ -95,15 +94,17 @@ static uint32_t sx_resample(const sd_view_t *v, uint32_t start, double delta, co
         const double p1 = sx_at(v, i);
         const double p2 = sx_at(v, i + 1u);
         const double p3 = sx_at(v, i + 2u);
-        const double y = p1 + 0.5 * f * ((p2 - p0) + f * ((2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) +
-                                                             f * (3.0 * (p1 - p2) + p3 - p0)));
+        const double y = p1 + 0.5 * f *
+                                  ((p2 - p0) +
+                                   f * ((2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) + f * (3.0 * (p1 - p2) + p3 - p0)));
         const double r = nearbyint(y - (double)offset); /* whole counts on both paths: they agree exactly */
         if (rowd != NULL) {
             rowd[j] = c->gain * (r + 0.0); /* + 0.0: no negative zero, as the int16 path */
         } else {
             const bool out = (r < (double)INT16_MIN) || (r > (double)INT16_MAX);
             clipped += out ? 1u : 0u;
-            const double sat = (r < (double)INT16_MIN) ? (double)INT16_MIN : ((r > (double)INT16_MAX) ? (double)INT16_MAX : r);
+            const double sat = (r < (double)INT16_MIN) ? (double)INT16_MIN
+                                                       : ((r > (double)INT16_MAX) ? (double)INT16_MAX : r);
             row16[j] = (int16_t)sat;
         }
     }
@@ -254,7 +255,8 @@ static void sx_service_spikes(sx_stream_t *sx, const sd_events_t *ev, const sd_v
     const sx_config_t *c = &sx->cfg;
     for (size_t k = 0u; (k < MD_MAX_SPIKES) && (sx->ev_cursor < ev->n); ++k) {
         const uint32_t t = ev->t[sx->ev_cursor];
-        const uint64_t need = (uint64_t)t + c->realign + c->d_w + (c->subsample ? SX_INTERP_MARGIN : 0u); /* >= last sample read + 1 */
+        const uint64_t need = (uint64_t)t + c->realign + c->d_w +
+                              (c->subsample ? SX_INTERP_MARGIN : 0u); /* >= last sample read + 1 */
         if (!final && (need > (uint64_t)v->hi + c->pre_peak)) {
             break; /* its samples have not all arrived */
         }
@@ -428,8 +430,7 @@ md_status_t sx_extract_spikes(const int16_t *x, size_t n, const sd_events_t *ev,
     return MD_OK;
 }
 
-md_status_t sx_extract_noise(const int16_t *x, size_t n, const sd_events_t *ev, const sx_config_t *cfg,
-                             sx_noise_t *out)
+md_status_t sx_extract_noise(const int16_t *x, size_t n, const sd_events_t *ev, const sx_config_t *cfg, sx_noise_t *out)
 {
     if ((x == NULL) || (ev == NULL) || (cfg == NULL) || (out == NULL) || !sx_config_valid(cfg) ||
         (ev->n > MD_MAX_SPIKES) || (n > SD_MAX_INTERVAL_SAMPLES)) {

@@ -31,7 +31,7 @@
 #include "md_config.h"
 #include "signal/spike_detect.h"
 
-#define SX_QUEUE_MAX 64u     ///< noise candidates waiting for confirmation
+#define SX_QUEUE_MAX 64u                                 ///< noise candidates waiting for confirmation
 #define SX_MIN_SPACING (SD_RING_SAMPLES / SX_QUEUE_MAX)  ///< smallest candidate gap: the queue cannot overflow
 #define SX_SERVICE_MAX 128u  ///< sx_stream_service() must run at least every this many samples
 
@@ -48,7 +48,7 @@ typedef struct {
     bool subsample;    ///< align spike windows on the sub-sample minimum (below); noise snippets are never shifted
 } sx_config_t;
 
-#define SX_INTERP_MARGIN 2u ///< samples the sub-sample resampling reads on each side of a window
+#define SX_INTERP_MARGIN 2u  ///< samples the sub-sample resampling reads on each side of a window
 
 #define SX_FLAG_OVERFLOW 0x1u     ///< the detector overflowed: not every spike of the interval is here
 #define SX_FLAG_NOISE_SHORT 0x2u  ///< fewer noise snippets than requested could be placed
@@ -61,14 +61,14 @@ typedef struct {
     uint32_t t[MD_MAX_SPIKES];  ///< sample index of each window's minimum
     size_t n;
     size_t d_w;
-    int32_t offset;             ///< DC offset removed, ADC counts
-    double gain;                ///< physical units per count (from the configuration)
-    uint32_t n_edge_skipped;    ///< events whose window would leave the interval
-    uint32_t n_duplicate;       ///< events realigned onto an already extracted minimum
-    uint32_t n_overflow;        ///< events the detector could not store
-    uint32_t n_lost;            ///< windows no longer in the delay line (0 unless the configuration is extreme)
-    uint32_t n_clipped;         ///< samples saturated to int16
-    uint32_t flags;             ///< SX_FLAG_*
+    int32_t offset;           ///< DC offset removed, ADC counts
+    double gain;              ///< physical units per count (from the configuration)
+    uint32_t n_edge_skipped;  ///< events whose window would leave the interval
+    uint32_t n_duplicate;     ///< events realigned onto an already extracted minimum
+    uint32_t n_overflow;      ///< events the detector could not store
+    uint32_t n_lost;          ///< windows no longer in the delay line (0 unless the configuration is extreme)
+    uint32_t n_clipped;       ///< samples saturated to int16
+    uint32_t flags;           ///< SX_FLAG_*
 } sx_windows_t;
 
 /// Spike-free noise windows of one interval, compact (caller-owned; 25 kB).
@@ -90,12 +90,12 @@ typedef struct {
 
 /// Candidate sequence, guard check and reservoir of the snippet picker.
 typedef struct {
-    md_rng_t pos_rng;     /* candidate gaps */
-    md_rng_t res_rng;     /* reservoir replacement */
-    uint32_t next;        /* start of the next candidate */
+    md_rng_t pos_rng; /* candidate gaps */
+    md_rng_t res_rng; /* reservoir replacement */
+    uint32_t next;    /* start of the next candidate */
     uint32_t min_gap;
-    uint32_t span;        /* gaps are min_gap + U[0, span] */
-    size_t cursor;        /* first event not entirely before the current candidate's guard zone */
+    uint32_t span; /* gaps are min_gap + U[0, span] */
+    size_t cursor; /* first event not entirely before the current candidate's guard zone */
 } sx_picker_t;
 
 /// Streaming extractor of one channel (caller-owned, ~0.4 kB; members private).
@@ -159,10 +159,10 @@ typedef struct {
     uint32_t t[MD_MAX_SPIKES];  ///< sample index of each window's minimum
     size_t n;
     size_t d_w;
-    uint32_t n_edge_skipped;    ///< events whose window would leave the interval
-    uint32_t n_duplicate;       ///< events realigned onto an already extracted minimum
-    uint32_t n_overflow;        ///< events the detector could not store (copied from it)
-    uint32_t flags;             ///< SX_FLAG_*
+    uint32_t n_edge_skipped;  ///< events whose window would leave the interval
+    uint32_t n_duplicate;     ///< events realigned onto an already extracted minimum
+    uint32_t n_overflow;      ///< events the detector could not store (copied from it)
+    uint32_t flags;           ///< SX_FLAG_*
 } sx_spikes_t;
 
 /// Spike-free noise windows of one interval as doubles (caller-owned).

@@ -28,9 +28,11 @@
 typedef struct {
     sd_stream_t det;
     sx_stream_t ext;
-    int16_t stage[8u * SD_STEP_SAMPLES];  /* step slots: samples waiting for a full step (frames of 30 do not align with 32) */
-    uint32_t n_stage;                     /* samples of the current step in slot `slot` */
-    uint32_t slot;                        /* the current step's slot; the next step follows it in the stage */
+    int16_t
+        stage[8u *
+              SD_STEP_SAMPLES]; /* step slots: samples waiting for a full step (frames of 30 do not align with 32) */
+    uint32_t n_stage;           /* samples of the current step in slot `slot` */
+    uint32_t slot;              /* the current step's slot; the next step follows it in the stage */
     int state;
 } sp_channel_t;
 

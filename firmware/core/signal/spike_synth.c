@@ -95,8 +95,8 @@ md_status_t synth_trace(const synth_config_t *cfg, int16_t *out, size_t n, uint3
     return MD_OK;
 }
 
-void synth_match(const uint32_t *truth, size_t n_truth, const uint32_t *det, size_t n_det, uint32_t tol,
-                 size_t *hits, size_t *false_pos)
+void synth_match(const uint32_t *truth, size_t n_truth, const uint32_t *det, size_t n_det, uint32_t tol, size_t *hits,
+                 size_t *false_pos)
 {
     size_t h = 0u;
     size_t fp = 0u;

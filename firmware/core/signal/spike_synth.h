@@ -44,7 +44,7 @@ size_t synth_template(uint32_t sample_rate_hz, double *tmpl, size_t cap, size_t 
 /// Scores detections against ground truth: both lists ascending; a detection
 /// within `tol` samples of a not yet matched true spike is a hit, every other
 /// detection a false positive. Greedy in time order, O(n_truth + n_det).
-void synth_match(const uint32_t *truth, size_t n_truth, const uint32_t *det, size_t n_det, uint32_t tol,
-                 size_t *hits, size_t *false_pos);
+void synth_match(const uint32_t *truth, size_t n_truth, const uint32_t *det, size_t n_det, uint32_t tol, size_t *hits,
+                 size_t *false_pos);
 
 #endif

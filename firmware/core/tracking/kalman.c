@@ -8,7 +8,7 @@
 
 #include "common/linalg.h"
 
-#define KF_DROP_NORM 1e-9   /* Gram-Schmidt: a vector this short is already in the span */
+#define KF_DROP_NORM 1e-9 /* Gram-Schmidt: a vector this short is already in the span */
 
 static double kf_dot_fd(const float *v, const double *h, size_t n)
 {
@@ -99,8 +99,7 @@ static md_status_t kf_rebuild(kf_state_t *st, kf_work_t *ws, size_t k)
     for (size_t slot = 0u; slot < KF_RANK_MAX; ++slot) {
         size_t best = k;
         for (size_t j = 0u; j < k; ++j) {
-            if (!taken[j] && (fabs(ws->val[j]) > tiny) &&
-                ((best == k) || (fabs(ws->val[j]) > fabs(ws->val[best])))) {
+            if (!taken[j] && (fabs(ws->val[j]) > tiny) && ((best == k) || (fabs(ws->val[j]) > fabs(ws->val[best])))) {
                 best = j;
             }
         }
@@ -187,11 +186,11 @@ md_status_t kf_predict_scaled(kf_state_t *st, double q, double s2, kf_work_t *ws
     return MD_OK;
 }
 
-md_status_t kf_init(kf_state_t *st, size_t d_w, const double *x0, double a0, const double *h, size_t d,
-                    const double *r, kf_work_t *ws)
+md_status_t kf_init(kf_state_t *st, size_t d_w, const double *x0, double a0, const double *h, size_t d, const double *r,
+                    kf_work_t *ws)
 {
-    if ((st == NULL) || (x0 == NULL) || (ws == NULL) || (d_w == 0u) || (d_w > KF_DW_MAX) ||
-        !(a0 > 0.0) || !isfinite(a0) || ((r != NULL) && ((h == NULL) || (d == 0u) || (d > KF_D_MAX)))) {
+    if ((st == NULL) || (x0 == NULL) || (ws == NULL) || (d_w == 0u) || (d_w > KF_DW_MAX) || !(a0 > 0.0) ||
+        !isfinite(a0) || ((r != NULL) && ((h == NULL) || (d == 0u) || (d > KF_D_MAX)))) {
         return MD_E_ARG;
     }
     if (!linalg_all_finite(x0, d_w)) {
@@ -233,8 +232,7 @@ md_status_t kf_init(kf_state_t *st, size_t d_w, const double *x0, double a0, con
 }
 
 /* Λ Hᵀ (d_w × d) into ws->p and S = H Λ Hᵀ + R (eq. 4.13) factorised into ws->sl. */
-static md_status_t kf_gain_terms(const kf_state_t *st, const double *h, size_t d, const double *r,
-                                 kf_work_t *ws)
+static md_status_t kf_gain_terms(const kf_state_t *st, const double *h, size_t d, const double *r, kf_work_t *ws)
 {
     const size_t n = st->d_w;
     for (size_t c = 0u; c < d; ++c) {
@@ -262,15 +260,12 @@ static md_status_t kf_gain_terms(const kf_state_t *st, const double *h, size_t d
     return linalg_cholesky(ws->sl, d);
 }
 
-md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *mu, const double *r,
-                      kf_work_t *ws)
+md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *mu, const double *r, kf_work_t *ws)
 {
-    if ((st == NULL) || (h == NULL) || (mu == NULL) || (r == NULL) || (ws == NULL) || (d == 0u) ||
-        (d > KF_D_MAX)) {
+    if ((st == NULL) || (h == NULL) || (mu == NULL) || (r == NULL) || (ws == NULL) || (d == 0u) || (d > KF_D_MAX)) {
         return MD_E_ARG;
     }
-    if (!linalg_all_finite(mu, d) || !linalg_all_finite(r, d * d) ||
-        (kf_gain_terms(st, h, d, r, ws) != MD_OK)) {
+    if (!linalg_all_finite(mu, d) || !linalg_all_finite(r, d * d) || (kf_gain_terms(st, h, d, r, ws) != MD_OK)) {
         return MD_E_NUMERIC;
     }
     const size_t n = st->d_w;

@@ -41,20 +41,20 @@ _Static_assert(KF_RANK_MAX <= 255u, "rank stored in uint8_t");
 
 /// State estimate x̂ and covariance Λ of one target (eq. 4.7-4.8, 4.16-4.17).
 typedef struct {
-    uint16_t d_w;                          ///< waveform length
-    uint8_t rank;                          ///< directions in use (≤ KF_RANK_MAX)
-    double a;                              ///< isotropic variance part of Λ
-    double x[KF_DW_MAX];                   ///< x̂, mean waveform
-    double e[KF_RANK_MAX];                 ///< eigen-offsets e_i (Λ = aI + Σ e_i v_i v_iᵀ)
-    float v[KF_RANK_MAX][KF_DW_MAX];       ///< orthonormal directions v_i
+    uint16_t d_w;                     ///< waveform length
+    uint8_t rank;                     ///< directions in use (≤ KF_RANK_MAX)
+    double a;                         ///< isotropic variance part of Λ
+    double x[KF_DW_MAX];              ///< x̂, mean waveform
+    double e[KF_RANK_MAX];            ///< eigen-offsets e_i (Λ = aI + Σ e_i v_i v_iᵀ)
+    float v[KF_RANK_MAX][KF_DW_MAX];  ///< orthonormal directions v_i
 } kf_state_t;
 
 /// Scratch of kf_update (caller-owned, ~7 KB).
 typedef struct {
-    double w[KF_SPAN_MAX][KF_DW_MAX];      ///< orthonormal basis of span{v_i, rows of H}
-    double p[KF_DW_MAX * KF_D_MAX];        ///< Λ Hᵀ, d_w × d
-    double m[KF_SPAN_MAX * KF_SPAN_MAX];   ///< Λ' - aI in the basis w
-    double vec[KF_SPAN_MAX * KF_SPAN_MAX]; ///< its eigenvectors
+    double w[KF_SPAN_MAX][KF_DW_MAX];       ///< orthonormal basis of span{v_i, rows of H}
+    double p[KF_DW_MAX * KF_D_MAX];         ///< Λ Hᵀ, d_w × d
+    double m[KF_SPAN_MAX * KF_SPAN_MAX];    ///< Λ' - aI in the basis w
+    double vec[KF_SPAN_MAX * KF_SPAN_MAX];  ///< its eigenvectors
     double val[KF_SPAN_MAX];
     double s[KF_D_MAX * KF_D_MAX];
     double sl[KF_D_MAX * KF_D_MAX];
@@ -64,8 +64,8 @@ typedef struct {
 /// directions (rows of h, d × d_w, orthonormal) carry R (d × d, SPD) and every
 /// other direction a0 > 0. r may be NULL (then Λ = a0·I).
 /// MD_E_ARG on bad sizes/values, MD_E_NUMERIC on non-finite input.
-md_status_t kf_init(kf_state_t *st, size_t d_w, const double *x0, double a0, const double *h, size_t d,
-                    const double *r, kf_work_t *ws);
+md_status_t kf_init(kf_state_t *st, size_t d_w, const double *x0, double a0, const double *h, size_t d, const double *r,
+                    kf_work_t *ws);
 
 /// eq. 4.7-4.8 with F = I, Q = q·I (q ≥ 0): x̂ unchanged, a += q.
 md_status_t kf_predict(kf_state_t *st, double q);
@@ -86,8 +86,7 @@ md_status_t kf_measure(const kf_state_t *st, const double *h, size_t d, double *
 
 /// Measurement update with μ (d values) and R (d × d SPD): eq. 4.15-4.17.
 /// MD_E_NUMERIC if S is not SPD or a result is not finite (st unchanged then).
-md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *mu, const double *r,
-                      kf_work_t *ws);
+md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *mu, const double *r, kf_work_t *ws);
 
 /// Dense Λ (d_w × d_w, row-major) for tests and diagnostics. O(r d_w^2).
 void kf_covariance(const kf_state_t *st, double *lambda);

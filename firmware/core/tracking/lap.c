@@ -34,20 +34,20 @@ typedef struct {
     int8_t row_of_col[LAP_MAX_COLS];
     double u[LAP_MAX_ROWS];
     double v[LAP_MAX_COLS];
-    uint32_t blocked;             ///< columns of pinned rows: no path may pass through them
+    uint32_t blocked;  ///< columns of pinned rows: no path may pass through them
 } lap_work_t;
 
 typedef struct {
-    double dist[LAP_MAX_COLS];    ///< shortest reduced path cost to each column
-    int8_t pred[LAP_MAX_COLS];    ///< row preceding each column on its path
+    double dist[LAP_MAX_COLS];  ///< shortest reduced path cost to each column
+    int8_t pred[LAP_MAX_COLS];  ///< row preceding each column on its path
     uint32_t scanned_cols;
     uint8_t scanned_rows;
 } lap_search_t;
 
 /* One Dijkstra step from row i: relax its arcs, return the closest unscanned
  * column (preferring a free column on ties, which ends the search sooner). */
-static int closest_column(const lap_problem_t *p, const lap_work_t *s, lap_search_t *w, size_t i,
-                          double base, uint32_t blocked)
+static int closest_column(const lap_problem_t *p, const lap_work_t *s, lap_search_t *w, size_t i, double base,
+                          uint32_t blocked)
 {
     int best = -1;
     double lowest = HUGE_VAL;
@@ -167,8 +167,8 @@ static md_status_t check_costs(const lap_problem_t *p)
 
 md_status_t lap_solve(const lap_problem_t *p, lap_solution_t *out)
 {
-    if (p == NULL || out == NULL || p->cost == NULL || p->rows == 0u || p->rows > LAP_MAX_ROWS ||
-        p->cols < p->rows || p->cols > LAP_MAX_COLS) {
+    if (p == NULL || out == NULL || p->cost == NULL || p->rows == 0u || p->rows > LAP_MAX_ROWS || p->cols < p->rows ||
+        p->cols > LAP_MAX_COLS) {
         return MD_E_ARG;
     }
     md_status_t st = check_costs(p);

@@ -35,10 +35,10 @@ _Static_assert(LAP_MAX_COLS < 127u, "column indices are stored in int8_t");
 /// A problem: a row-major rows×cols cost matrix (not owned) and the
 /// restrictions Murty's partitioning adds.
 typedef struct {
-    const double *cost;                 ///< rows*cols entries, row-major
+    const double *cost;  ///< rows*cols entries, row-major
     size_t rows, cols;
-    uint32_t forbidden[LAP_MAX_ROWS];   ///< bit c set: pair (row, c) excluded
-    int8_t fixed_col[LAP_MAX_ROWS];     ///< column a row is pinned to, or LAP_UNASSIGNED
+    uint32_t forbidden[LAP_MAX_ROWS];  ///< bit c set: pair (row, c) excluded
+    int8_t fixed_col[LAP_MAX_ROWS];    ///< column a row is pinned to, or LAP_UNASSIGNED
 } lap_problem_t;
 
 /// An assignment: every row's column and the total cost.

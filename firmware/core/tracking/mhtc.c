@@ -12,7 +12,7 @@
 #include "tracking/mhtc_internal.h"
 
 #define MHTC_NO_SLOT SIZE_MAX /* no model slot */
-#define MHTC_COV_REG 1e-3 /* ridge (relative to the mean eigenvalue) on a Σ_j mapped into a new basis */
+#define MHTC_COV_REG 1e-3     /* ridge (relative to the mean eigenvalue) on a Σ_j mapped into a new basis */
 
 static const mhtc_hyp_t g_root = {0}; /* the empty parent of the first interval */
 
@@ -25,11 +25,11 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->tracker = tracker;
     cfg->L = MHTC_L_MAX;
     cfg->g_max = MHTC_G_MAX;
-    cfg->lambda_new = 0.01;   /* Table 4.1 */
+    cfg->lambda_new = 0.01; /* Table 4.1 */
     cfg->lambda_false = 0.015;
     cfg->pd.pd_max = 0.98;
     cfg->pd.pd_min = 0.75;
-    cfg->pd.a = 0.6;          /* §4.4.2 */
+    cfg->pd.a = 0.6; /* §4.4.2 */
     cfg->pd.b = 4.0;
     cfg->beta = 0.001;
     cfg->k_miss = 5u;
@@ -58,15 +58,15 @@ md_status_t mhtc_config_check(const mhtc_config_t *c)
     const bool pd_ok = (c->pd.pd_min > 0.0) && (c->pd.pd_min <= c->pd.pd_max) && (c->pd.pd_max < 1.0) &&
                        (c->pd.a >= 0.0) && (c->pd.b > 0.0);
     const bool ok = tracker_ok && pd_ok && (c->L >= 1u) && (c->L <= MHTC_L_MAX) && (c->g_max >= 1u) &&
-                    (c->g_max <= MHTC_G_MAX) && (c->lambda_new > 0.0) && (c->lambda_false > 0.0) &&
-                    (c->beta >= 0.0) && (c->beta < 1.0) && (c->k_miss >= 1u) &&
-                    (c->k_miss <= MHTC_HIST_MAX) && (c->n_scan < MHTC_HIST_MAX) && (c->nn_k_miss >= 1u) && (c->nn_k_miss <= MHTC_HIST_MAX) &&
-                    (c->q_process > 0.0) && isfinite(c->q_process) && (c->init_var > 0.0) && (c->q_move_per_um >= 0.0) &&
-                    isfinite(c->q_move_per_um) &&
-                    isfinite(c->init_var) && (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) &&
-                    (c->em.tol > 0.0) && (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) &&
-                    (c->gnn_gate_chi2 > 0.0) && (c->share_jeffreys >= 0.0) && isfinite(c->share_jeffreys) &&
-                    (c->warm_jeffreys >= 0.0) && (c->unimodal_ratio >= 0.0) && (c->unimodal_ratio <= 1.0) &&
+                    (c->g_max <= MHTC_G_MAX) && (c->lambda_new > 0.0) && (c->lambda_false > 0.0) && (c->beta >= 0.0) &&
+                    (c->beta < 1.0) && (c->k_miss >= 1u) && (c->k_miss <= MHTC_HIST_MAX) &&
+                    (c->n_scan < MHTC_HIST_MAX) && (c->nn_k_miss >= 1u) && (c->nn_k_miss <= MHTC_HIST_MAX) &&
+                    (c->q_process > 0.0) && isfinite(c->q_process) && (c->init_var > 0.0) &&
+                    (c->q_move_per_um >= 0.0) && isfinite(c->q_move_per_um) && isfinite(c->init_var) &&
+                    (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) && (c->em.tol > 0.0) &&
+                    (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) && (c->gnn_gate_chi2 > 0.0) &&
+                    (c->share_jeffreys >= 0.0) && isfinite(c->share_jeffreys) && (c->warm_jeffreys >= 0.0) &&
+                    (c->unimodal_ratio >= 0.0) && (c->unimodal_ratio <= 1.0) &&
                     ((c->evidence == CLUSTER_EVIDENCE_LAPLACE) || (c->evidence == CLUSTER_EVIDENCE_BIC));
     return ok ? MD_OK : MD_E_ARG;
 }
@@ -85,16 +85,11 @@ md_status_t mhtc_init(mhtc_state_t *st, const mhtc_config_t *cfg)
 const char *mhtc_tracker_name(mhtc_tracker_t tracker)
 {
     switch (tracker) {
-    case MHTC_TRACKER_MHTC:
-        return "mhtc";
-    case MHTC_TRACKER_MAP_NN:
-        return "map-nn";
-    case MHTC_TRACKER_ML_NN:
-        return "ml-nn";
-    case MHTC_TRACKER_GNN:
-        return "gnn";
-    default:
-        return "?";
+    case MHTC_TRACKER_MHTC: return "mhtc";
+    case MHTC_TRACKER_MAP_NN: return "map-nn";
+    case MHTC_TRACKER_ML_NN: return "ml-nn";
+    case MHTC_TRACKER_GNN: return "gnn";
+    default: return "?";
     }
 }
 
@@ -119,15 +114,15 @@ const mhtc_hyp_t *mhtc_parent(const mhtc_state_t *st, size_t p)
 
 static bool mhtc_input_ok(const mhtc_state_t *st, const mhtc_input_t *in, const mhtc_workspace_t *ws)
 {
-    if ((in == NULL) || (ws == NULL) || (in->basis == NULL) || (in->noise_cov == NULL) ||
-        (in->n > EM_N_MAX) || ((in->n > 0u) && ((in->y == NULL) || ((in->wave == NULL) && (in->wave_i16 == NULL)))) ||
+    if ((in == NULL) || (ws == NULL) || (in->basis == NULL) || (in->noise_cov == NULL) || (in->n > EM_N_MAX) ||
+        ((in->n > 0u) && ((in->y == NULL) || ((in->wave == NULL) && (in->wave_i16 == NULL)))) ||
         ((in->wave == NULL) && (in->n > 0u) && !(in->wave_gain > 0.0 && isfinite(in->wave_gain))) ||
         !(in->duration_s > 0.0) || !isfinite(in->duration_s) || !(in->move_um >= 0.0) || !isfinite(in->move_um)) {
         return false;
     }
     const pca_basis_t *b = in->basis;
-    if ((b->d < 1u) || (b->d > EM_D_MAX) || (b->d_w < b->d) || (b->d_w > KF_DW_MAX) ||
-        (in->stride < b->d_w) || ((st->d_w != 0u) && (st->d_w != b->d_w))) {
+    if ((b->d < 1u) || (b->d > EM_D_MAX) || (b->d_w < b->d) || (b->d_w > KF_DW_MAX) || (in->stride < b->d_w) ||
+        ((st->d_w != 0u) && (st->d_w != b->d_w))) {
         return false;
     }
     if (!linalg_all_finite(b->b, b->d * b->d_w) || !linalg_all_finite(in->noise_cov, b->d * b->d) ||
@@ -226,8 +221,7 @@ static size_t mhtc_warm_donor(const mhtc_state_t *st, const mhtc_workspace_t *ws
 {
     for (size_t q = 0u; (q < ws->n_models) && (q < sizeof ws->model / sizeof ws->model[0]); ++q) {
         const size_t r = ws->model[q].parent;
-        if ((ws->model[q].g == g) && (r != p) &&
-            mhtc_priors_within(st, ws, d, r, p, st->cfg.warm_jeffreys, 1.0)) {
+        if ((ws->model[q].g == g) && (r != p) && mhtc_priors_within(st, ws, d, r, p, st->cfg.warm_jeffreys, 1.0)) {
             return q;
         }
     }
@@ -260,8 +254,7 @@ static bool mhtc_oversplit(mhtc_state_t *st, const em_params_t *params)
  * most as many clusters as tracks keeps its seeds: they are the parent's own targets, and
  * warm-starting those too made the interval's hypotheses alike and cost closed-loop ID
  * consistency (docs/tracking-eval.md). */
-static bool mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws,
-                           mhtc_model_t *m)
+static bool mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws, mhtc_model_t *m)
 {
     cluster_workspace_t *c = &ws->cl;
     m->usable = false;
@@ -306,8 +299,7 @@ static void mhtc_evidence_fallback(mhtc_state_t *st, size_t n, mhtc_model_t *m)
 }
 
 /* The mean prior of parent p (eq. 3.8-3.10) into ws->cl.prior. */
-static md_status_t mhtc_parent_prior(const mhtc_state_t *st, size_t d, double volume, mhtc_workspace_t *ws,
-                                     size_t p)
+static md_status_t mhtc_parent_prior(const mhtc_state_t *st, size_t d, double volume, mhtc_workspace_t *ws, size_t p)
 {
     const size_t nt = mhtc_fill_targets(st, ws, p);
     return em_prior_init(d, ws->targets, nt, st->cfg.lambda_new + st->cfg.lambda_false, volume, &ws->cl.prior);
@@ -316,8 +308,7 @@ static md_status_t mhtc_parent_prior(const mhtc_state_t *st, size_t d, double vo
 /* Step 6 for every model that evaluates the fit of slot s: one data part of
  * the Laplace Hessian at that Θ̂, finished under each model's parent prior
  * (the prior enters eq. 3.18 only through log p(μ̂) and the mean blocks). */
-static void mhtc_evidence_of_fit(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws,
-                                 size_t s)
+static void mhtc_evidence_of_fit(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws, size_t s)
 {
     em_evidence_work_t *ev = &ws->cl.ev;
     const bool have_data = (em_evidence_data(data, &ws->cl.outlier, &ws->model[s].fit.params, ev) == MD_OK);
@@ -327,8 +318,7 @@ static void mhtc_evidence_of_fit(mhtc_state_t *st, const em_data_t *data, double
             continue;
         }
         if (!have_data || (mhtc_parent_prior(st, data->d, volume, ws, m->parent) != MD_OK) ||
-            (em_evidence_finish(&ws->cl.prior, &m->fit.params, st->cfg.shape_prior_width, ev, &m->log_ev) !=
-             MD_OK) ||
+            (em_evidence_finish(&ws->cl.prior, &m->fit.params, st->cfg.shape_prior_width, ev, &m->log_ev) != MD_OK) ||
             !isfinite(m->log_ev)) {
             mhtc_evidence_fallback(st, data->n, m);
         }
@@ -357,8 +347,8 @@ static bool mhtc_associate(mhtc_state_t *st, mhtc_workspace_t *ws, mhtc_model_t 
     for (size_t j = 0u; j < nt; ++j) {
         pd[j] = ws->targets[j].p_detect;
     }
-    if (mhtc_assoc_costs(&m->fit.zeta[0][0], EM_J_MAX + 1u, m->g, pd, nt, st->cfg.lambda_new,
-                         st->cfg.lambda_false, ws->cost) != MD_OK) {
+    if (mhtc_assoc_costs(&m->fit.zeta[0][0], EM_J_MAX + 1u, m->g, pd, nt, st->cfg.lambda_new, st->cfg.lambda_false,
+                         ws->cost) != MD_OK) {
         return false;
     }
     ws->murty.solves = 0u;
@@ -436,8 +426,8 @@ static size_t mhtc_donor(const mhtc_workspace_t *ws, size_t first, size_t count,
  * There every model class G = 1..g_max gets the same P3 = 1/g_max (no information on the
  * number of neurons), as the clustering of thesis ch. 3 does without tracking.
  * With a donor range (count > 0), a model class the donor fitted is re-evaluated, not refitted. */
-static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws,
-                               size_t p, size_t donor_first, size_t donor_count)
+static void mhtc_expand_parent(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws, size_t p,
+                               size_t donor_first, size_t donor_count)
 {
     const size_t nt = mhtc_fill_targets(st, ws, p);
     const double l0 = st->cfg.lambda_new + st->cfg.lambda_false;
@@ -513,8 +503,7 @@ static size_t mhtc_same_prior(const mhtc_state_t *st, size_t p)
     const mhtc_hyp_t *h = mhtc_parent(st, p);
     for (size_t q = 0u; q < p; ++q) {
         const mhtc_hyp_t *o = mhtc_parent(st, q);
-        if ((o->n_tracks == h->n_tracks) &&
-            (memcmp(o->track, h->track, h->n_tracks * sizeof h->track[0]) == 0)) {
+        if ((o->n_tracks == h->n_tracks) && (memcmp(o->track, h->track, h->n_tracks * sizeof h->track[0]) == 0)) {
             return q;
         }
     }
@@ -560,10 +549,9 @@ static bool mhtc_priors_within(const mhtc_state_t *st, const mhtc_workspace_t *w
         for (size_t k = 0u; (k < a->n_tracks) && !found; ++k) {
             const size_t ra = a->track[k];
             found = !used[k] && (ra < MHTC_POOL) && (rb < MHTC_POOL) &&
-                    ((ra == rb) ||
-                     ((fabs(st->pool[ra].p_detect - st->pool[rb].p_detect) <= pd_max) &&
-                      (mhtc_jeffreys(ws->pred_mu[ra], ws->pred_s[ra], ws->pred_mu[rb], ws->pred_s[rb], d) <=
-                       jeffreys_max)));
+                    ((ra == rb) || ((fabs(st->pool[ra].p_detect - st->pool[rb].p_detect) <= pd_max) &&
+                                    (mhtc_jeffreys(ws->pred_mu[ra], ws->pred_s[ra], ws->pred_mu[rb], ws->pred_s[rb],
+                                                   d) <= jeffreys_max)));
             used[k] = used[k] || found;
         }
         if (!found) {
@@ -606,9 +594,8 @@ static void mhtc_expand_all(mhtc_state_t *st, const em_data_t *data, double volu
         }
         size_t donor = p;
         for (size_t r = 0u; (r < p) && (donor == p); ++r) {
-            donor = (fitted[r] && mhtc_priors_within(st, ws, data->d, r, p, st->cfg.share_jeffreys, MHTC_SHARE_PD))
-                        ? r
-                        : p;
+            donor = (fitted[r] && mhtc_priors_within(st, ws, data->d, r, p, st->cfg.share_jeffreys, MHTC_SHARE_PD)) ? r
+                                                                                                                    : p;
         }
         fitted[p] = (donor == p);
         const uint32_t pruned0 = st->stats.models_pruned;

@@ -67,8 +67,7 @@ static md_status_t mhtc_assign_ml_nn(const mhtc_workspace_t *ws, const mhtc_mode
         size_t bg = MHTC_G_MAX, bj = 0u;
         for (size_t g = 0u; g < m->g; ++g) {
             for (size_t j = 0u; j < nt; ++j) {
-                if (!done[g] && !taken[j] && (d2[g][j] <= gate2) &&
-                    ((bg == MHTC_G_MAX) || (d2[g][j] < d2[bg][bj]))) {
+                if (!done[g] && !taken[j] && (d2[g][j] <= gate2) && ((bg == MHTC_G_MAX) || (d2[g][j] < d2[bg][bj]))) {
                     bg = g;
                     bj = j;
                 }
@@ -85,8 +84,8 @@ static md_status_t mhtc_assign_ml_nn(const mhtc_workspace_t *ws, const mhtc_mode
 }
 
 /* GNN: the single best assignment of A* with pairs outside the gate forbidden. */
-static md_status_t mhtc_assign_gnn(const mhtc_state_t *st, mhtc_workspace_t *ws, const mhtc_model_t *m,
-                                   size_t nt, lap_solution_t *s)
+static md_status_t mhtc_assign_gnn(const mhtc_state_t *st, mhtc_workspace_t *ws, const mhtc_model_t *m, size_t nt,
+                                   lap_solution_t *s)
 {
     double pd[MHTC_TARGETS_MAX];
     for (size_t j = 0u; j < nt; ++j) {

@@ -47,8 +47,7 @@ void mhtc_solution_tags(const mhtc_state_t *st, const mhtc_workspace_t *ws, size
     }
 }
 
-size_t mhtc_child_track_count(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t m, size_t s,
-                              uint32_t k_miss)
+size_t mhtc_child_track_count(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t m, size_t s, uint32_t k_miss)
 {
     const mhtc_model_t *mod = &ws->model[m];
     const mhtc_hyp_t *par = mhtc_parent(st, mod->parent);
@@ -123,8 +122,8 @@ static size_t mhtc_find_staged(const mhtc_workspace_t *ws, int src, int model, s
 }
 
 /* The record keys a candidate needs: detected/missed parent tracks, then its new tracks. */
-static size_t mhtc_cand_keys(const mhtc_state_t *st, const mhtc_workspace_t *ws, const mhtc_cand_t *c,
-                             int *src, int *model, uint8_t *g)
+static size_t mhtc_cand_keys(const mhtc_state_t *st, const mhtc_workspace_t *ws, const mhtc_cand_t *c, int *src,
+                             int *model, uint8_t *g)
 {
     const mhtc_model_t *m = &ws->model[c->model];
     const mhtc_hyp_t *par = mhtc_parent(st, m->parent);
@@ -281,8 +280,8 @@ static void mhtc_record_view(const mhtc_track_t *t, const pca_basis_t *b, double
 
 /* Whether missed record `a`, already seen through B^k in ws->pair_*[0] (mhtc_record_view), and
  * detected record `det` form one mode (cfg.unimodal_ratio). */
-static bool mhtc_same_mode(const mhtc_state_t *st, const pca_basis_t *b, mhtc_workspace_t *ws,
-                           const mhtc_track_t *a, const mhtc_track_t *det)
+static bool mhtc_same_mode(const mhtc_state_t *st, const pca_basis_t *b, mhtc_workspace_t *ws, const mhtc_track_t *a,
+                           const mhtc_track_t *det)
 {
     mhtc_record_view(det, b, ws->pair_mean[1], ws->pair_cov[1]);
     const double wa = (a->n_last > 1.0) ? a->n_last : 1.0;
@@ -343,7 +342,7 @@ static void mhtc_drop_second_tracks(mhtc_state_t *st, const mhtc_input_t *in, mh
     if (!(st->cfg.unimodal_ratio > 0.0)) {
         return;
     }
-    uint32_t drop = 0u; /* bit j: entry j leaves h */
+    uint32_t drop = 0u;                         /* bit j: entry j leaves h */
     for (size_t j = 0u; j < h->n_tracks; ++j) { /* merges rewrite entries in place; drops are compacted after */
         const size_t t = h->track[j];
         size_t twin = MHTC_POOL;
@@ -459,8 +458,8 @@ static void mhtc_count_deleted(mhtc_state_t *st, const mhtc_workspace_t *ws)
     }
 }
 
-static void mhtc_report(const mhtc_state_t *st, const mhtc_input_t *in, const mhtc_workspace_t *ws,
-                        size_t cand0, mhtc_result_t *out)
+static void mhtc_report(const mhtc_state_t *st, const mhtc_input_t *in, const mhtc_workspace_t *ws, size_t cand0,
+                        mhtc_result_t *out)
 {
     const mhtc_hyp_t *h = &st->hyp[0];
     const mhtc_model_t *m = &ws->model[ws->cand[cand0].model];
@@ -563,8 +562,8 @@ md_status_t mhtc_commit(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace
     return MD_OK;
 }
 
-md_status_t mhtc_hyp_labels(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t h, size_t n,
-                            uint8_t *labels, int32_t *cluster_track, size_t *g)
+md_status_t mhtc_hyp_labels(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t h, size_t n, uint8_t *labels,
+                            int32_t *cluster_track, size_t *g)
 {
     if ((st == NULL) || (ws == NULL) || (labels == NULL) || (cluster_track == NULL) || (g == NULL) ||
         (h >= st->n_hyp) || (n > EM_N_MAX) || (st->hyp[h].model >= ws->n_models)) {

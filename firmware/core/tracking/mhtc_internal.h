@@ -7,7 +7,7 @@
 #include "tracking/mhtc.h"
 
 /// Tag of a new track from cluster g (1..G) of model slot m, before it has an ID.
-#define MHTC_TAG_NEW(m, g) (-2 - (int32_t)((m) * MHTC_G_MAX + ((g) - 1u)))
+#define MHTC_TAG_NEW(m, g) (-2 - (int32_t)((m)*MHTC_G_MAX + ((g)-1u)))
 
 /// Parent hypothesis p of this interval (the empty root before the first interval).
 const mhtc_hyp_t *mhtc_parent(const mhtc_state_t *st, size_t p);
@@ -16,12 +16,10 @@ const mhtc_hyp_t *mhtc_parent(const mhtc_state_t *st, size_t p);
 size_t mhtc_fill_targets(const mhtc_state_t *st, mhtc_workspace_t *ws, size_t p);
 
 /// Cluster tags of solution s of model m (track ID, new tag, MHTC_ID_FALSE) into tag[0..G).
-void mhtc_solution_tags(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t m, size_t s,
-                        int32_t *tag);
+void mhtc_solution_tags(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t m, size_t s, int32_t *tag);
 
 /// Tracks the child would keep (not deleted) plus its new tracks.
-size_t mhtc_child_track_count(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t m, size_t s,
-                              uint32_t k_miss);
+size_t mhtc_child_track_count(const mhtc_state_t *st, const mhtc_workspace_t *ws, size_t m, size_t s, uint32_t k_miss);
 
 /// Offers a child to the best-L list with duplicate pruning (§4.4.1).
 void mhtc_offer(mhtc_state_t *st, mhtc_workspace_t *ws, const mhtc_cand_t *c);

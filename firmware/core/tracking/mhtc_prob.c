@@ -29,8 +29,8 @@ double mhtc_pd_next(const mhtc_pd_rule_t *rule, double pd_prev, double rate_hz)
 
 md_status_t mhtc_log_p3(const double *pd, size_t n_t, size_t g, double lambda0, double *log_p3)
 {
-    if ((log_p3 == NULL) || ((pd == NULL) && (n_t > 0u)) || (n_t > MHTC_PROB_NT_MAX) ||
-        !(lambda0 > 0.0) || !isfinite(lambda0)) {
+    if ((log_p3 == NULL) || ((pd == NULL) && (n_t > 0u)) || (n_t > MHTC_PROB_NT_MAX) || !(lambda0 > 0.0) ||
+        !isfinite(lambda0)) {
         return MD_E_ARG;
     }
     /* P(N_τ = t): Poisson-binomial over the detection patterns δ (inner sum of eq. 4.32). */
@@ -68,9 +68,8 @@ md_status_t mhtc_log_p3(const double *pd, size_t n_t, size_t g, double lambda0, 
 md_status_t mhtc_assoc_costs(const double *zeta, size_t zeta_stride, size_t g, const double *pd, size_t n_t,
                              double lambda_new, double lambda_false, double *cost)
 {
-    if ((zeta == NULL) || (cost == NULL) || ((pd == NULL) && (n_t > 0u)) || (g == 0u) ||
-        (g > LAP_MAX_ROWS) || (n_t > MHTC_PROB_NT_MAX) || (zeta_stride < n_t + 1u) ||
-        !(lambda_new > 0.0) || !(lambda_false > 0.0)) {
+    if ((zeta == NULL) || (cost == NULL) || ((pd == NULL) && (n_t > 0u)) || (g == 0u) || (g > LAP_MAX_ROWS) ||
+        (n_t > MHTC_PROB_NT_MAX) || (zeta_stride < n_t + 1u) || !(lambda_new > 0.0) || !(lambda_false > 0.0)) {
         return MD_E_ARG;
     }
     const size_t cols = n_t + 2u * g;
@@ -85,11 +84,11 @@ md_status_t mhtc_assoc_costs(const double *zeta, size_t zeta_stride, size_t g, c
         for (size_t c = 0u; c < cols; ++c) {
             double a = 0.0;
             if (c < n_t) {
-                a = z[c + 1u] / (1.0 - pd[c]);            /* a_gj, eq. 4.25 */
+                a = z[c + 1u] / (1.0 - pd[c]); /* a_gj, eq. 4.25 */
             } else if (c == n_t + r) {
-                a = lambda_new / l0 * z[0];               /* α^ν_g */
+                a = lambda_new / l0 * z[0]; /* α^ν_g */
             } else if (c == n_t + g + r) {
-                a = lambda_false / l0 * z[0];             /* α^φ_g */
+                a = lambda_false / l0 * z[0]; /* α^φ_g */
             }
             if (isnan(a)) {
                 return MD_E_NUMERIC;

@@ -7,8 +7,7 @@ static size_t best_open(const murty_workspace_t *ws)
     for (size_t i = 1u; i < ws->open_count; ++i) {
         const murty_node_t *a = &ws->open[i];
         const murty_node_t *b = &ws->open[best];
-        if (a->solution.cost < b->solution.cost ||
-            (!(a->solution.cost > b->solution.cost) && a->order < b->order)) {
+        if (a->solution.cost < b->solution.cost || (!(a->solution.cost > b->solution.cost) && a->order < b->order)) {
             best = i;
         }
     }
@@ -21,8 +20,7 @@ static size_t worst_open(const murty_workspace_t *ws)
     for (size_t i = 1u; i < ws->open_count; ++i) {
         const murty_node_t *a = &ws->open[i];
         const murty_node_t *b = &ws->open[worst];
-        if (a->solution.cost > b->solution.cost ||
-            (!(a->solution.cost < b->solution.cost) && a->order > b->order)) {
+        if (a->solution.cost > b->solution.cost || (!(a->solution.cost < b->solution.cost) && a->order > b->order)) {
             worst = i;
         }
     }

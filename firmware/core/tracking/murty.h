@@ -22,14 +22,14 @@
 typedef struct {
     lap_problem_t problem;
     lap_solution_t solution;
-    uint32_t order;   ///< insertion number: equal costs pop first-in first-out, so results are deterministic
+    uint32_t order;  ///< insertion number: equal costs pop first-in first-out, so results are deterministic
 } murty_node_t;
 
 typedef struct {
     murty_node_t open[MURTY_MAX_L];
     size_t open_count;
     uint32_t inserted;
-    uint32_t solves;   ///< LAP solves performed (for benchmarks)
+    uint32_t solves;  ///< LAP solves performed (for benchmarks)
 } murty_workspace_t;
 
 /// Writes the best min(L, feasible) assignments of the rows×cols cost matrix

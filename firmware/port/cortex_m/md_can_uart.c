@@ -41,7 +41,7 @@ _Static_assert(MD_CAN_UART_STRIPES == 5u, "the tables above list the AN500's fiv
 
 #define RING_MASK (MD_CAN_UART_RX_RING - 1u)
 _Static_assert((MD_CAN_UART_RX_RING & RING_MASK) == 0u, "ring size is a power of two");
-_Static_assert(MD_CAN_UART_RX_RING * MD_CAN_UART_STRIPES >= 2u * MD_LINK_ENCODED_MAX,
+_Static_assert(MD_CAN_UART_RX_RING *MD_CAN_UART_STRIPES >= 2u * MD_LINK_ENCODED_MAX,
                "the rings hold at least two frames");
 
 /* One RX ring per UART. head: written by that UART's interrupt only; tail:
@@ -61,8 +61,14 @@ static md_link_decoder_t decoder;
 static md_can_uart_stats_t stats;
 
 /* Both are called from thread code only, where interrupts are enabled. */
-static inline void irq_off(void) { __asm__ volatile("cpsid i" ::: "memory"); }
-static inline void irq_on(void) { __asm__ volatile("cpsie i" ::: "memory"); }
+static inline void irq_off(void)
+{
+    __asm__ volatile("cpsid i" ::: "memory");
+}
+static inline void irq_on(void)
+{
+    __asm__ volatile("cpsie i" ::: "memory");
+}
 
 void md_can_uart_init(void)
 {
@@ -121,11 +127,26 @@ static void rx_isr(uint32_t j)
     isr_ticks = isr_ticks + (md_port_m7_ticks() - t0);
 }
 
-void UART0RX_IRQHandler(void) { rx_isr(0u); }
-void UART1RX_IRQHandler(void) { rx_isr(1u); }
-void UART2RX_IRQHandler(void) { rx_isr(2u); }
-void UART3RX_IRQHandler(void) { rx_isr(3u); }
-void UART4RX_IRQHandler(void) { rx_isr(4u); }
+void UART0RX_IRQHandler(void)
+{
+    rx_isr(0u);
+}
+void UART1RX_IRQHandler(void)
+{
+    rx_isr(1u);
+}
+void UART2RX_IRQHandler(void)
+{
+    rx_isr(2u);
+}
+void UART3RX_IRQHandler(void)
+{
+    rx_isr(3u);
+}
+void UART4RX_IRQHandler(void)
+{
+    rx_isr(4u);
+}
 
 /* Stripe j's interrupt is paused (its ring was full): once the ring has room
  * again, let the interrupt run and take the byte the UART held meanwhile.

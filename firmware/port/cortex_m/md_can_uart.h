@@ -34,15 +34,15 @@
 
 /// Counters of the link (every failure counted).
 typedef struct {
-    uint32_t tx_frames;      ///< frames written to the UART
-    uint32_t tx_timeouts;    ///< frames abandoned: the UART stayed full (host not reading)
-    uint32_t rx_frames;      ///< valid frames decoded
-    uint32_t rx_bad_crc;     ///< packets dropped: CRC
-    uint32_t rx_bad_frame;   ///< packets dropped: not a valid frame
-    uint32_t rx_bad_esc;     ///< packets dropped: bad SLIP escape
-    uint32_t rx_too_long;    ///< packets dropped: longer than any frame
-    uint32_t rx_overruns;    ///< bytes the UART itself reported lost (STATE.RX overrun)
-    uint32_t rx_ring_full;   ///< times the ring filled up and the RX interrupt paused
+    uint32_t tx_frames;     ///< frames written to the UART
+    uint32_t tx_timeouts;   ///< frames abandoned: the UART stayed full (host not reading)
+    uint32_t rx_frames;     ///< valid frames decoded
+    uint32_t rx_bad_crc;    ///< packets dropped: CRC
+    uint32_t rx_bad_frame;  ///< packets dropped: not a valid frame
+    uint32_t rx_bad_esc;    ///< packets dropped: bad SLIP escape
+    uint32_t rx_too_long;   ///< packets dropped: longer than any frame
+    uint32_t rx_overruns;   ///< bytes the UART itself reported lost (STATE.RX overrun)
+    uint32_t rx_ring_full;  ///< times the ring filled up and the RX interrupt paused
 } md_can_uart_stats_t;
 
 /// Sets up UART0 (enable, RX interrupt, NVIC line) and empties the decoder.

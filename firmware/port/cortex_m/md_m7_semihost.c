@@ -34,7 +34,7 @@ int32_t md_sh_get_cmdline(char *buf, uint32_t cap)
 typedef struct {
     const char *name;
     uint32_t mode;
-    uint32_t len;     /* of the name, without its NUL */
+    uint32_t len; /* of the name, without its NUL */
 } sh_open_block_t;
 
 typedef struct {

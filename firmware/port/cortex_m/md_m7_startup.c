@@ -67,24 +67,37 @@ typedef struct {
  * initial SP and PC from here. Index = exception number - 1. */
 __attribute__((section(".isr_vector"), used)) static const md_m7_vector_table_t md_m7_vectors = {
     .initial_sp = __stack_top,
-    .handler = {
-        [0] = Reset_Handler,
-        [1] = fault_handler,  /* NMI */
-        [2] = fault_handler,  /* HardFault */
-        [3] = fault_handler,  /* MemManage */
-        [4] = fault_handler,  /* BusFault */
-        [5] = fault_handler,  /* UsageFault */
-        [10] = SVC_Handler,
-        [11] = default_handler, /* DebugMonitor */
-        [13] = PendSV_Handler,
-        [14] = SysTick_Handler,
-        /* external interrupts 0..31 (index 15 + n); UART RX lines 0, 2, 4, 18, 20 */
-        [15] = UART0RX_IRQHandler, default_handler,
-        [17] = UART1RX_IRQHandler, default_handler,
-        [19] = UART2RX_IRQHandler, DH4, DH4, DH4, default_handler,
-        [33] = UART3RX_IRQHandler, default_handler,
-        [35] = UART4RX_IRQHandler, DH4, DH4, default_handler, default_handler, default_handler,
-    },
+    .handler =
+        {
+            [0] = Reset_Handler,
+            [1] = fault_handler, /* NMI */
+            [2] = fault_handler, /* HardFault */
+            [3] = fault_handler, /* MemManage */
+            [4] = fault_handler, /* BusFault */
+            [5] = fault_handler, /* UsageFault */
+            [10] = SVC_Handler,
+            [11] = default_handler, /* DebugMonitor */
+            [13] = PendSV_Handler,
+            [14] = SysTick_Handler,
+            /* external interrupts 0..31 (index 15 + n); UART RX lines 0, 2, 4, 18, 20 */
+            [15] = UART0RX_IRQHandler,
+            default_handler,
+            [17] = UART1RX_IRQHandler,
+            default_handler,
+            [19] = UART2RX_IRQHandler,
+            DH4,
+            DH4,
+            DH4,
+            default_handler,
+            [33] = UART3RX_IRQHandler,
+            default_handler,
+            [35] = UART4RX_IRQHandler,
+            DH4,
+            DH4,
+            default_handler,
+            default_handler,
+            default_handler,
+        },
 };
 _Static_assert(MD_M7_EXT_IRQS == 32u, "the initializer above lists 32 external vectors");
 
@@ -93,14 +106,13 @@ _Static_assert(MD_M7_EXT_IRQS == 32u, "the initializer above lists 32 external v
  * instruction with CP10/CP11 disabled is a UsageFault (NOCP). */
 __attribute__((naked)) void Reset_Handler(void)
 {
-    __asm__ volatile(
-        "ldr r0, =0xE000ED88    \n" /* CPACR */
-        "ldr r1, [r0]           \n"
-        "orr r1, r1, #(0xF << 20)\n" /* CP10, CP11: full access */
-        "str r1, [r0]           \n"
-        "dsb                    \n"
-        "isb                    \n"
-        "b md_m7_reset_c        \n");
+    __asm__ volatile("ldr r0, =0xE000ED88    \n" /* CPACR */
+                     "ldr r1, [r0]           \n"
+                     "orr r1, r1, #(0xF << 20)\n" /* CP10, CP11: full access */
+                     "str r1, [r0]           \n"
+                     "dsb                    \n"
+                     "isb                    \n"
+                     "b md_m7_reset_c        \n");
 }
 
 static void paint_stack(void)
@@ -215,24 +227,22 @@ void md_m7_fault_report(const uint32_t *frame, uint32_t ipsr)
  * not be touched before the report. */
 __attribute__((naked)) static void fault_handler(void)
 {
-    __asm__ volatile(
-        "tst lr, #4      \n"
-        "ite eq          \n"
-        "mrseq r0, msp   \n"
-        "mrsne r0, psp   \n"
-        "mrs r1, ipsr    \n"
-        "b md_m7_fault_report\n");
+    __asm__ volatile("tst lr, #4      \n"
+                     "ite eq          \n"
+                     "mrseq r0, msp   \n"
+                     "mrsne r0, psp   \n"
+                     "mrs r1, ipsr    \n"
+                     "b md_m7_fault_report\n");
 }
 
 /* Any interrupt nobody claimed: nothing in this port enables one, so it is a
  * bug; report it like a fault. */
 __attribute__((naked)) static void default_handler(void)
 {
-    __asm__ volatile(
-        "tst lr, #4      \n"
-        "ite eq          \n"
-        "mrseq r0, msp   \n"
-        "mrsne r0, psp   \n"
-        "mrs r1, ipsr    \n"
-        "b md_m7_fault_report\n");
+    __asm__ volatile("tst lr, #4      \n"
+                     "ite eq          \n"
+                     "mrseq r0, msp   \n"
+                     "mrsne r0, psp   \n"
+                     "mrs r1, ipsr    \n"
+                     "b md_m7_fault_report\n");
 }

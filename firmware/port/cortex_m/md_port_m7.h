@@ -30,12 +30,12 @@
 
 /// State behind the stub port; caller-owned (static storage in main).
 typedef struct {
-    uint32_t frames_sent;     ///< frames accepted by send()
-    uint32_t frames_refused;  ///< frames send() rejected (invalid id/length/flags, NULL)
-    uint32_t frames_received; ///< frames md_port_m7_receive() handed out
-    uint32_t frames_failed;   ///< valid frames the CAN driver could not send
-    uint32_t insn_per_tick;   ///< work units per SysTick tick (md_port_m7_calibrate; 0 before)
-    md_frame_t last_frame;    ///< copy of the last accepted frame
+    uint32_t frames_sent;      ///< frames accepted by send()
+    uint32_t frames_refused;   ///< frames send() rejected (invalid id/length/flags, NULL)
+    uint32_t frames_received;  ///< frames md_port_m7_receive() handed out
+    uint32_t frames_failed;    ///< valid frames the CAN driver could not send
+    uint32_t insn_per_tick;    ///< work units per SysTick tick (md_port_m7_calibrate; 0 before)
+    md_frame_t last_frame;     ///< copy of the last accepted frame
 } md_port_m7_ctx_t;
 
 /// Fill `port` with the Cortex-M7 send/now_us/work_now functions bound to

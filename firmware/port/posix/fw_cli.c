@@ -56,20 +56,21 @@ static int set_named_param(md_params_t *p, const char *arg, char *msg, size_t ms
         }
     }
     if (msg != NULL && msglen > 0u) {
-        (void)snprintf(msg, msglen, "--param '%s': no parameter of that name (NAME=VALUE; see --params-markdown)",
-                       arg);
+        (void)snprintf(msg, msglen, "--param '%s': no parameter of that name (NAME=VALUE; see --params-markdown)", arg);
     }
     return -1;
 }
 
 fw_cli_result_t fw_cli_parse(int argc, char **argv, fw_cli_t *o, char *msg, size_t msglen)
 {
-    static const struct option LONG_OPTS[] = {
-        {"bus", required_argument, NULL, 'b'},          {"heartbeat-ms", required_argument, NULL, 'h'},
-        {"heartbeat-timeout-ms", required_argument, NULL, 't'}, {"auto-start", no_argument, NULL, 'a'},
-        {"params-markdown", no_argument, NULL, 'm'},    {"help", no_argument, NULL, 'H'},
-        {"param", required_argument, NULL, 'p'},
-        {NULL, 0, NULL, 0}};
+    static const struct option LONG_OPTS[] = {{"bus", required_argument, NULL, 'b'},
+                                              {"heartbeat-ms", required_argument, NULL, 'h'},
+                                              {"heartbeat-timeout-ms", required_argument, NULL, 't'},
+                                              {"auto-start", no_argument, NULL, 'a'},
+                                              {"params-markdown", no_argument, NULL, 'm'},
+                                              {"help", no_argument, NULL, 'H'},
+                                              {"param", required_argument, NULL, 'p'},
+                                              {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
     o->bus_spec = "auto";
     set_msg(msg, msglen, "");
@@ -107,14 +108,13 @@ fw_cli_result_t fw_cli_parse(int argc, char **argv, fw_cli_t *o, char *msg, size
 int fw_cli_configure(md_params_t *p, const fw_cli_t *o, char *msg, size_t msglen)
 {
     set_msg(msg, msglen, "");
-    if (o->heartbeat_ms != NULL &&
-        set_param(p, md_params_def(MD_P_HEARTBEAT_PERIOD_MS)->index, o->heartbeat_ms, "--heartbeat-ms", msg,
-                  msglen) != 0) {
+    if (o->heartbeat_ms != NULL && set_param(p, md_params_def(MD_P_HEARTBEAT_PERIOD_MS)->index, o->heartbeat_ms,
+                                             "--heartbeat-ms", msg, msglen) != 0) {
         return -1;
     }
     if (o->heartbeat_timeout_ms != NULL &&
-        set_param(p, md_params_def(MD_P_HEARTBEAT_TIMEOUT_MS)->index, o->heartbeat_timeout_ms,
-                  "--heartbeat-timeout-ms", msg, msglen) != 0) {
+        set_param(p, md_params_def(MD_P_HEARTBEAT_TIMEOUT_MS)->index, o->heartbeat_timeout_ms, "--heartbeat-timeout-ms",
+                  msg, msglen) != 0) {
         return -1;
     }
     if (o->auto_start != 0 &&

@@ -14,11 +14,11 @@
 #define FW_CLI_MAX_PARAMS 32
 
 typedef struct {
-    const char *bus_spec;                     ///< --bus SPEC ("auto" unless given)
-    const char *heartbeat_ms;                 ///< --heartbeat-ms N (NULL: not given)
-    const char *heartbeat_timeout_ms;         ///< --heartbeat-timeout-ms N (NULL: not given)
-    int auto_start;                           ///< --auto-start
-    const char *param[FW_CLI_MAX_PARAMS];     ///< --param "NAME=VALUE", in command-line order
+    const char *bus_spec;                  ///< --bus SPEC ("auto" unless given)
+    const char *heartbeat_ms;              ///< --heartbeat-ms N (NULL: not given)
+    const char *heartbeat_timeout_ms;      ///< --heartbeat-timeout-ms N (NULL: not given)
+    int auto_start;                        ///< --auto-start
+    const char *param[FW_CLI_MAX_PARAMS];  ///< --param "NAME=VALUE", in command-line order
     int n_param;
 } fw_cli_t;
 

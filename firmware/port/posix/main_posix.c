@@ -66,18 +66,17 @@ static uint64_t port_now_us(void *ctx)
 
 static void usage(FILE *out)
 {
-    (void)fprintf(out,
-                  "usage: microdrive-fw [--bus SPEC] [--heartbeat-ms N] [--heartbeat-timeout-ms N]\n"
-                  "                     [--auto-start] [--param NAME=VALUE]... [--params-markdown] [--help]\n"
-                  "  --bus SPEC               auto (default: vcan0 if present, else udp), udp, udp:PORT,\n"
-                  "                           vcan0/can0/<ifname>, inproc:NAME\n"
-                  "  --heartbeat-ms N         heartbeat period (parameter 0x1017)\n"
-                  "  --heartbeat-timeout-ms N heartbeat consumer timeout (parameter 0x1016)\n"
-                  "  --auto-start             go operational after boot (parameter 0x1F80)\n"
-                  "  --param NAME=VALUE       set parameter NAME (see --params-markdown) before the start, with\n"
-                  "                           the checks of a set over the bus; repeatable, applied in order\n"
-                  "  --params-markdown        print the parameter table (docs/protocol.md) and exit\n"
-                  "SIGINT/SIGTERM end the process cleanly.\n");
+    (void)fprintf(out, "usage: microdrive-fw [--bus SPEC] [--heartbeat-ms N] [--heartbeat-timeout-ms N]\n"
+                       "                     [--auto-start] [--param NAME=VALUE]... [--params-markdown] [--help]\n"
+                       "  --bus SPEC               auto (default: vcan0 if present, else udp), udp, udp:PORT,\n"
+                       "                           vcan0/can0/<ifname>, inproc:NAME\n"
+                       "  --heartbeat-ms N         heartbeat period (parameter 0x1017)\n"
+                       "  --heartbeat-timeout-ms N heartbeat consumer timeout (parameter 0x1016)\n"
+                       "  --auto-start             go operational after boot (parameter 0x1F80)\n"
+                       "  --param NAME=VALUE       set parameter NAME (see --params-markdown) before the start, with\n"
+                       "                           the checks of a set over the bus; repeatable, applied in order\n"
+                       "  --params-markdown        print the parameter table (docs/protocol.md) and exit\n"
+                       "SIGINT/SIGTERM end the process cleanly.\n");
 }
 
 static void print_params_markdown(void)
@@ -90,9 +89,9 @@ static void print_params_markdown(void)
                              : ((d->flags & MD_PARAM_F_MOTION) != 0u)  ? "rw, refused while e-stop latched"
                              : ((d->flags & MD_PARAM_F_CONFIG) != 0u)  ? "rw, refused while operational"
                                                                        : "rw";
-        (void)printf("| 0x%04X | %s | %s | %.10g | %.10g | %.10g | %s%s | %s |\n", (unsigned)d->index, d->name,
-                     d->unit, d->min, d->max, d->def, access,
-                     ((d->flags & MD_PARAM_F_INTEGER) != 0u) ? ", integer" : "", d->doc);
+        (void)printf("| 0x%04X | %s | %s | %.10g | %.10g | %.10g | %s%s | %s |\n", (unsigned)d->index, d->name, d->unit,
+                     d->min, d->max, d->def, access, ((d->flags & MD_PARAM_F_INTEGER) != 0u) ? ", integer" : "",
+                     d->doc);
     }
 }
 
