@@ -41,8 +41,8 @@ _Static_assert(MD_CAN_UART_STRIPES == 5u, "the tables above list the AN500's fiv
 
 #define RING_MASK (MD_CAN_UART_RX_RING - 1u)
 _Static_assert((MD_CAN_UART_RX_RING & RING_MASK) == 0u, "ring size is a power of two");
-_Static_assert(MD_CAN_UART_RX_RING *MD_CAN_UART_STRIPES >= 2u * MD_LINK_ENCODED_MAX,
-               "the rings hold at least two frames");
+#define RING_BYTES_ALL (MD_CAN_UART_RX_RING * MD_CAN_UART_STRIPES)
+_Static_assert(RING_BYTES_ALL >= 2u * MD_LINK_ENCODED_MAX, "the rings hold at least two frames");
 
 /* One RX ring per UART. head: written by that UART's interrupt only; tail:
  * by the main loop only. */
