@@ -482,14 +482,60 @@ static bool reported_depth_um(const md_electrode_t *el, double *depth_um)
     return ok;
 }
 
+/* The flags a cycle starts with: lockstep and how the last move ended. */
+static uint32_t cycle_start_flags(const md_cycle_t *c, const md_electrode_t *el)
+{
+    uint32_t flags = c->lockstep ? MD_TLM_F_LOCKSTEP : 0u;
+    flags |= (el->last_move == MD_SERVO_R_CONVERGED) ? MD_TLM_F_LAST_MOVE_OK : 0u;
+    flags |= (el->last_move != MD_SERVO_R_NONE && el->last_move != MD_SERVO_R_CONVERGED) ? MD_TLM_F_LAST_MOVE_FAILED
+                                                                                         : 0u;
+    return flags;
+}
+
+/* Keeps the interval's results on the electrode and returns the step the SFSM
+ * and the approach guard ask for; 0 without a calibrated depth (no decision
+ * without one). */
+static double decide_step(md_electrode_t *el, const md_node_t *node, const md_workspace_t *ws,
+                          const md_process_out_t *po)
+{
+    el->has_dominant = po->has_dominant;
+    el->dominant = po->dominant;
+    el->snr = po->snr;
+    el->iqm = po->iqm;
+    el->guard_amp = po->amp;
+    double depth = 0.0;
+    double step = 0.0;
+    if (md_servo_depth_um(&el->servo, &depth) == MD_OK) {
+        el->depth_um = depth;
+        step = guard(el, node, ws, po, depth, decide(el, node, po, depth));
+    } else {
+        el->flags |= MD_TLM_F_NO_DEPTH;
+    }
+    return step;
+}
+
+/* Starts the move to el->target_um when the step is not negligible and
+ * motion is allowed; an inhibited move is flagged and counted. True: the
+ * servo is moving. */
+static bool begin_move(md_electrode_t *el, const md_node_t *node, double step)
+{
+    if (fabs(step) <= STEP_EPS_UM) {
+        return false;
+    }
+    const bool move = cycle_allowed(node) &&
+                      md_servo_begin(&el->servo, el->target_um, md_params_get(&node->params, MD_P_DEPTH_MIN_UM),
+                                     md_params_get(&node->params, MD_P_DEPTH_MAX_UM),
+                                     md_params_get(&node->params, MD_P_STEP_MAX_UM)) == MD_OK;
+    el->flags |= move ? MD_TLM_F_MOVE : MD_TLM_F_INHIBITED;
+    el->inhibited += move ? 0u : 1u;
+    return move;
+}
+
 static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
 {
     const uint64_t w0 = work_begin(node);
     md_electrode_t *el = &c->el[c->active];
-    el->flags = c->lockstep ? MD_TLM_F_LOCKSTEP : 0u;
-    el->flags |= (el->last_move == MD_SERVO_R_CONVERGED) ? MD_TLM_F_LAST_MOVE_OK : 0u;
-    el->flags |= (el->last_move != MD_SERVO_R_NONE && el->last_move != MD_SERVO_R_CONVERGED) ? MD_TLM_F_LAST_MOVE_FAILED
-                                                                                             : 0u;
+    el->flags = cycle_start_flags(c, el);
     md_process_out_t po;
     const double duration_s = (double)el->rec_samples / (double)el->sample_rate_hz;
     md_status_t st = (el->rec_status != MD_OK) ? el->rec_status : MD_OK;
@@ -499,38 +545,16 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     if (st == MD_OK) {
         st = md_process_interval(&c->ws, el, duration_s, md_params_get(&node->params, MD_P_MIN_RATE_HZ), &po);
     }
-    if (st == MD_OK) {
-        el->tracked_depth_um = here;
-        el->tracked_depth_ok = here_ok;
-    }
     if (st != MD_OK) {
         el->cost_process = work_end(node, w0);
         skip_cycle(c, node, st, now_us); /* tracks and SFSM untouched */
         return;
     }
-    el->has_dominant = po.has_dominant;
-    el->dominant = po.dominant;
-    el->snr = po.snr;
-    el->iqm = po.iqm;
-    el->guard_amp = po.amp;
-    double depth = 0.0;
-    double step = 0.0;
-    if (md_servo_depth_um(&el->servo, &depth) == MD_OK) {
-        el->depth_um = depth;
-        step = guard(el, node, &c->ws, &po, depth, decide(el, node, &po, depth));
-    } else {
-        el->flags |= MD_TLM_F_NO_DEPTH; /* no decision without a depth */
-    }
+    el->tracked_depth_um = here;
+    el->tracked_depth_ok = here_ok;
+    const double step = decide_step(el, node, &c->ws, &po);
     el->target_um = el->depth_um + step;
-    bool move = false;
-    if (fabs(step) > STEP_EPS_UM) {
-        move = cycle_allowed(node) &&
-               md_servo_begin(&el->servo, el->target_um, md_params_get(&node->params, MD_P_DEPTH_MIN_UM),
-                              md_params_get(&node->params, MD_P_DEPTH_MAX_UM),
-                              md_params_get(&node->params, MD_P_STEP_MAX_UM)) == MD_OK;
-        el->flags |= move ? MD_TLM_F_MOVE : MD_TLM_F_INHIBITED;
-        el->inhibited += move ? 0u : 1u;
-    }
+    const bool move = begin_move(el, node, step);
     el->cost_process = work_end(node, w0);
     (void)md_tlm_cycle(node, c->active, el, MD_TLM_PHASE_PROCESSED, el->rec_samples);
     (void)md_tlm_status(node, c->active, el, po.n_spikes);
