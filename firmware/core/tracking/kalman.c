@@ -260,14 +260,11 @@ static md_status_t kf_gain_terms(const kf_state_t *st, const double *h, size_t d
     return linalg_cholesky(ws->sl, d);
 }
 
-md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *mu, const double *r, kf_work_t *ws)
+/* The mean's update (eq. 4.15-4.16): xnew = x + P S⁻¹ ν with the innovation
+ * ν = μ - H x; ws->p and ws->sl hold P and chol(S) (kf_gain_terms). */
+static md_status_t kf_mean_update(const kf_state_t *st, const double *h, size_t d, const double *mu,
+                                  const kf_work_t *ws, double *xnew)
 {
-    if ((st == NULL) || (h == NULL) || (mu == NULL) || (r == NULL) || (ws == NULL) || (d == 0u) || (d > KF_D_MAX)) {
-        return MD_E_ARG;
-    }
-    if (!linalg_all_finite(mu, d) || !linalg_all_finite(r, d * d) || (kf_gain_terms(st, h, d, r, ws) != MD_OK)) {
-        return MD_E_NUMERIC;
-    }
     const size_t n = st->d_w;
     double z[KF_D_MAX];
     for (size_t c = 0u; c < d; ++c) {
@@ -276,20 +273,16 @@ md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *m
     if (linalg_cholesky_solve(ws->sl, d, z) != MD_OK) {
         return MD_E_NUMERIC;
     }
-    double xnew[KF_DW_MAX];
     for (size_t i = 0u; i < n; ++i) {
         xnew[i] = st->x[i] + kf_dot(&ws->p[i * d], z, d); /* eq. 4.15-4.16: x += P S⁻¹ ν */
     }
-    if (!linalg_all_finite(xnew, n)) {
-        return MD_E_NUMERIC;
-    }
-    /* eq. 4.17 as Λ' = Λ - P S⁻¹ Pᵀ, expressed in W = orth{v_i, rows of H}. */
-    size_t k = 0u;
-    kf_span_lowrank(st, ws, &k);
-    for (size_t c = 0u; c < d; ++c) {
-        kf_gs_append(ws, &k, &h[c * n], n);
-    }
-    kf_project_lowrank(st, ws, k);
+    return linalg_all_finite(xnew, n) ? MD_OK : MD_E_NUMERIC;
+}
+
+/* The covariance's downdate in the basis W (k vectors of length n in ws->w):
+ * M -= (Wᵀ P) S⁻¹ (Wᵀ P)ᵀ, then symmetrised against rounding. */
+static md_status_t kf_downdate(kf_work_t *ws, size_t k, size_t d, size_t n)
+{
     double pc[KF_SPAN_MAX][KF_D_MAX]; /* Wᵀ P */
     for (size_t j = 0u; j < k; ++j) {
         for (size_t c = 0u; c < d; ++c) {
@@ -317,7 +310,30 @@ md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *m
             ws->m[j * k + i] = s;
         }
     }
-    if (!linalg_all_finite(ws->m, k * k)) {
+    return linalg_all_finite(ws->m, k * k) ? MD_OK : MD_E_NUMERIC;
+}
+
+md_status_t kf_update(kf_state_t *st, const double *h, size_t d, const double *mu, const double *r, kf_work_t *ws)
+{
+    if ((st == NULL) || (h == NULL) || (mu == NULL) || (r == NULL) || (ws == NULL) || (d == 0u) || (d > KF_D_MAX)) {
+        return MD_E_ARG;
+    }
+    if (!linalg_all_finite(mu, d) || !linalg_all_finite(r, d * d) || (kf_gain_terms(st, h, d, r, ws) != MD_OK)) {
+        return MD_E_NUMERIC;
+    }
+    const size_t n = st->d_w;
+    double xnew[KF_DW_MAX];
+    if (kf_mean_update(st, h, d, mu, ws, xnew) != MD_OK) {
+        return MD_E_NUMERIC;
+    }
+    /* eq. 4.17 as Λ' = Λ - P S⁻¹ Pᵀ, expressed in W = orth{v_i, rows of H}. */
+    size_t k = 0u;
+    kf_span_lowrank(st, ws, &k);
+    for (size_t c = 0u; c < d; ++c) {
+        kf_gs_append(ws, &k, &h[c * n], n);
+    }
+    kf_project_lowrank(st, ws, k);
+    if (kf_downdate(ws, k, d, n) != MD_OK) {
         return MD_E_NUMERIC;
     }
     kf_state_t old = *st;
