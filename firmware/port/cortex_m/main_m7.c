@@ -216,6 +216,76 @@ static void report_link(const md_port_m7_ctx_t *pc, uint64_t now_us)
     say(", ring full ", s->rx_ring_full, "\n");
 }
 
+/* The platform up: the clock and the work counter's calibration, reported on
+ * the console so a run's costs can be converted to instructions. */
+static void start_clock(md_port_m7_ctx_t *pc)
+{
+    md_port_m7_clock_start();
+    md_sh_write0("microdrive-fw-m7: up (Cortex-M7, mps2-an500, CAN over UART0)\n");
+    const uint64_t calib = md_port_m7_calibrate(pc);
+    say("microdrive-fw-m7: work counter: ", pc->insn_per_tick, " instructions per SysTick tick; ");
+    say("calibration loop of ", MD_M7_CALIB_INSNS, " instructions measured as ");
+    say("", (uint32_t)calib, "\n");
+}
+
+#if defined(MD_M7_HAVE_APP)
+/* One pass of the controller: the received frames (MD_M7_RX_BURST at most),
+ * then a poll at *now_us; a poll that failed to send counts in *poll_errors.
+ * True: work is due again already (no sleep). */
+static bool serve(md_controller_t *ctl, const md_port_t *port, md_port_m7_ctx_t *pc, uint64_t *now_us,
+                  uint32_t *poll_errors)
+{
+    md_frame_t rx;
+    for (uint32_t k = 0u; k < MD_M7_RX_BURST && md_port_m7_receive(pc, &rx); ++k) {
+        md_controller_on_frame(ctl, &rx, port->now_us(port->ctx)); /* rejections are counted by the node */
+    }
+    const uint32_t tx_failures = ctl->node.counters.tx_failures;
+    *now_us = port->now_us(port->ctx);
+    md_controller_poll(ctl, *now_us);
+    if (ctl->node.counters.tx_failures != tx_failures) {
+        (*poll_errors)++;
+    }
+    return md_controller_next_deadline_us(ctl) <= port->now_us(port->ctx);
+}
+#endif
+
+/* Sleep until the next interrupt unless work is waiting; interrupts masked
+ * around the check, so a byte arriving in between still wakes the wfi (a
+ * pending interrupt ends it even while masked). */
+static void sleep_unless_busy(bool busy)
+{
+    __asm__ volatile("cpsid i" ::: "memory");
+    if (!busy && !md_can_uart_rx_pending()) {
+        __asm__ volatile("wfi");
+    }
+    __asm__ volatile("cpsie i" ::: "memory");
+    __asm__ volatile("isb");
+}
+
+/* The closing report of a bounded run and its exit status: 2 when the loop
+ * took less time than its waits must (each pass without work due waits for an
+ * interrupt, with nothing on the UART the 1 ms tick: the clock or its
+ * interrupt is broken), 4 on a poll error or a refused or failed frame. */
+static int finish(const md_port_t *port, const md_port_m7_ctx_t *pc, uint64_t t0_us, const m7_options_t *opt,
+                  uint64_t busy_passes, uint32_t poll_errors)
+{
+    const uint64_t elapsed_us = port->now_us(port->ctx) - t0_us;
+    md_sh_write0("microdrive-fw-m7: idle loop done, ");
+    md_sh_write_uint((uint32_t)(elapsed_us / 1000u));
+    md_sh_write0(" ms elapsed, frames sent ");
+    md_sh_write_uint(pc->frames_sent);
+    md_sh_write0(", refused ");
+    md_sh_write_uint(pc->frames_refused);
+    md_sh_write0(", poll errors ");
+    md_sh_write_uint(poll_errors);
+    md_sh_write0("\n");
+    report_link(pc, port->now_us(port->ctx));
+    if (elapsed_us + 1000u * (busy_passes + 1u) < opt->iterations * 1000u) {
+        return 2;
+    }
+    return (poll_errors == 0u && pc->frames_refused == 0u && pc->frames_failed == 0u) ? 0 : 4;
+}
+
 int main(void)
 {
     static md_port_m7_ctx_t port_ctx;
@@ -227,12 +297,7 @@ int main(void)
     if (md_port_m7_init(&port, &port_ctx) != MD_OK) {
         return 1;
     }
-    md_port_m7_clock_start();
-    md_sh_write0("microdrive-fw-m7: up (Cortex-M7, mps2-an500, CAN over UART0)\n");
-    const uint64_t calib = md_port_m7_calibrate(&port_ctx);
-    say("microdrive-fw-m7: work counter: ", port_ctx.insn_per_tick, " instructions per SysTick tick; ");
-    say("calibration loop of ", MD_M7_CALIB_INSNS, " instructions measured as ");
-    say("", (uint32_t)calib, "\n");
+    start_clock(&port_ctx);
 
     const uint64_t t0_us = port.now_us(port.ctx);
 #if defined(MD_M7_HAVE_APP)
@@ -251,55 +316,19 @@ int main(void)
     uint64_t busy_passes = 0u;
     uint64_t next_report_us = t0_us + MD_M7_REPORT_PERIOD_US;
     for (uint64_t i = 0u; i < passes; ++i) {
-        uint64_t now_us;
-        bool busy = false;
 #if defined(MD_M7_HAVE_APP)
-        md_frame_t rx;
-        for (uint32_t k = 0u; k < MD_M7_RX_BURST && md_port_m7_receive(&port_ctx, &rx); ++k) {
-            md_controller_on_frame(ctl, &rx, port.now_us(port.ctx)); /* rejections are counted by the node */
-        }
-        const uint32_t tx_failures = ctl->node.counters.tx_failures;
-        now_us = port.now_us(port.ctx);
-        md_controller_poll(ctl, now_us);
-        if (ctl->node.counters.tx_failures != tx_failures) {
-            poll_errors++;
-        }
-        busy = md_controller_next_deadline_us(ctl) <= port.now_us(port.ctx);
+        uint64_t now_us = 0u;
+        const bool busy = serve(ctl, &port, &port_ctx, &now_us, &poll_errors);
 #else
-        now_us = port.now_us(port.ctx);
+        const uint64_t now_us = port.now_us(port.ctx);
+        const bool busy = false;
 #endif
         busy_passes += busy ? 1u : 0u;
         if (opt.iterations == 0u && now_us >= next_report_us) {
             report_link(&port_ctx, now_us);
             next_report_us = now_us + MD_M7_REPORT_PERIOD_US;
         }
-        /* Sleep until the next interrupt unless work is waiting; interrupts
-         * masked around the check, so a byte arriving in between still wakes
-         * the wfi (a pending interrupt ends it even while masked). */
-        __asm__ volatile("cpsid i" ::: "memory");
-        if (!busy && !md_can_uart_rx_pending()) {
-            __asm__ volatile("wfi");
-        }
-        __asm__ volatile("cpsie i" ::: "memory");
-        __asm__ volatile("isb");
+        sleep_unless_busy(busy);
     }
-    const uint64_t elapsed_us = port.now_us(port.ctx) - t0_us;
-
-    md_sh_write0("microdrive-fw-m7: idle loop done, ");
-    md_sh_write_uint((uint32_t)(elapsed_us / 1000u));
-    md_sh_write0(" ms elapsed, frames sent ");
-    md_sh_write_uint(port_ctx.frames_sent);
-    md_sh_write0(", refused ");
-    md_sh_write_uint(port_ctx.frames_refused);
-    md_sh_write0(", poll errors ");
-    md_sh_write_uint(poll_errors);
-    md_sh_write0("\n");
-    report_link(&port_ctx, port.now_us(port.ctx));
-    /* Each pass without work due waits for an interrupt (with nothing on the
-     * UART: the 1 ms tick), so less time means the clock or its interrupt is
-     * broken. */
-    if (elapsed_us + 1000u * (busy_passes + 1u) < opt.iterations * 1000u) {
-        return 2;
-    }
-    return (poll_errors == 0u && port_ctx.frames_refused == 0u && port_ctx.frames_failed == 0u) ? 0 : 4;
+    return finish(&port, &port_ctx, t0_us, &opt, busy_passes, poll_errors);
 }
