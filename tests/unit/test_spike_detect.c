@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "signal/spike_detect.h"
+#include "signal/spike_detect_offline.h"
 #include "signal/spike_synth.h"
 #include "unity.h"
 

@@ -6,6 +6,7 @@
 
 #include "features/pca.h"
 #include "metrics/quality.h"
+#include "signal/spike_detect_offline.h"
 #include "signal/spike_extract.h"
 #include "signal/spike_synth.h"
 #include "unity.h"

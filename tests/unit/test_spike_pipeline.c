@@ -7,6 +7,7 @@
 
 #include "features/pca.h"
 #include "metrics/quality.h"
+#include "signal/spike_detect_offline.h"
 #include "signal/spike_pipeline.h"
 #include "signal/spike_synth.h"
 #include "unity.h"

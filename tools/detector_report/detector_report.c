@@ -21,6 +21,7 @@
 
 #include "features/pca.h"
 #include "signal/spike_detect.h"
+#include "signal/spike_detect_offline.h"
 #include "signal/spike_pipeline.h"
 #include "signal/spike_synth.h"
 

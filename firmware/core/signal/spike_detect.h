@@ -30,9 +30,8 @@
 ///  - streaming (sd_stream_*): what the firmware runs, one sd_stream_t per
 ///    channel (~25 kB), usually through spike_pipeline.h;
 ///  - sd_detector_t (sd_init/sd_push/sd_finish/sd_samples): the OFFLINE
-///    CONVENIENCE PATH, a thin wrapper over the stream.
-///    It additionally copies the interval into a caller-owned buffer so that
-///    the buffer-based extractors of spike_extract.h can be used afterwards.
+///    CONVENIENCE PATH, a thin wrapper over the stream that also keeps a
+///    copy of the interval (spike_detect_offline.h).
 #ifndef SPIKE_DETECT_H
 #define SPIKE_DETECT_H
 
@@ -276,40 +275,5 @@ sd_view_t sd_stream_view(const sd_stream_t *st);
 /// Index of the first minimum of the view over [lo, hi] (clamped to the
 /// view); lo if the range is empty. O(hi - lo).
 uint32_t sd_view_argmin(const sd_view_t *v, uint32_t lo, uint32_t hi);
-
-/* ---- offline convenience path (buffered API, wrapper over sd_stream_t) ---- */
-
-/// Detector with an interval copy. Caller-owned; treat members as private.
-typedef struct {
-    sd_stream_t s;
-    int16_t *buf;
-    size_t cap;
-    size_t n;
-    uint32_t n_dropped;
-    int state;
-} sd_detector_t;
-
-/// OFFLINE CONVENIENCE PATH. Validates `cfg` and binds the caller's interval
-/// buffer `buf` of `cap` samples (1..SD_MAX_INTERVAL_SAMPLES), which must
-/// outlive the detector. MD_E_ARG on an invalid parameter.
-md_status_t sd_init(sd_detector_t *det, const sd_config_t *cfg, int16_t *buf, size_t cap);
-
-/// OFFLINE CONVENIENCE PATH. Starts a new interval. O(1).
-md_status_t sd_restart(sd_detector_t *det);
-
-/// OFFLINE CONVENIENCE PATH. Copies a chunk into the buffer and streams it
-/// into the detector. If the buffer fills, the samples that fit are kept,
-/// the rest are counted as dropped and MD_E_CAPACITY is returned (sd_finish
-/// then sets SD_FLAG_TRUNCATED). MD_E_STATE after sd_finish(). O(n).
-md_status_t sd_push(sd_detector_t *det, const int16_t *samples, size_t n);
-
-/// OFFLINE CONVENIENCE PATH. Ends the interval and copies the events into
-/// `ev`. MD_E_DEGENERATE if the interval is too short for the filters or
-/// its noise level is zero (a flat channel); MD_E_STATE if called twice.
-md_status_t sd_finish(sd_detector_t *det, sd_events_t *ev);
-
-/// OFFLINE CONVENIENCE PATH. The buffered samples of the current interval
-/// and their count (NULL if `det` is NULL). Valid until sd_restart().
-const int16_t *sd_samples(const sd_detector_t *det, size_t *n);
 
 #endif
