@@ -910,26 +910,6 @@ md_status_t scenario_make_world(const scenario_t *sc, uint64_t seed, sim_world_t
     return sim_world_init(w, sc->electrodes, sc->n_electrodes, seed);
 }
 
-bool scenario_faults_node_silent(const scenario_faults_t *f, uint32_t node, double t_s)
-{
-    for (uint32_t i = 0u; i < f->n_silent && i < SCENARIO_SILENT_MAX; ++i) {
-        const scenario_silence_t *q = &f->silent[i];
-        if (q->node == node && t_s >= q->from_s && t_s < q->to_s) {
-            return true;
-        }
-    }
-    return false;
-}
-
-uint32_t scenario_faults_restarts_due(const scenario_faults_t *f, double t_prev_s, double t_now_s)
-{
-    uint32_t n = 0u;
-    for (uint32_t i = 0u; i < f->n_restarts && i < SCENARIO_RESTARTS_MAX; ++i) {
-        n += (f->restart_at_s[i] > t_prev_s && f->restart_at_s[i] <= t_now_s) ? 1u : 0u;
-    }
-    return n;
-}
-
 bool scenario_node_silent(const scenario_t *sc, uint32_t node, double t_s)
 {
     return scenario_faults_node_silent(&sc->faults, node, t_s);

@@ -47,6 +47,7 @@
 #include <stdint.h>
 
 #include "model/sim_world.h"
+#include "scenario/scenario_faults.h"
 
 #define SCENARIO_NAME_MAX 64u
 
@@ -57,36 +58,6 @@ typedef struct {
     double step_um;      ///< move after each interval, signed (default 10 um: deeper)
     double settle_s;     ///< wait after a move before the next interval (default 1 s)
 } scenario_export_t;
-
-#define SCENARIO_BUS_FAULTS_MAX 8u
-#define SCENARIO_SILENT_MAX 4u
-#define SCENARIO_RESTARTS_MAX 4u
-
-/// One bus fault (a md_bus_fault wrapper around the simulator's endpoint).
-typedef struct {
-    uint32_t kind;        ///< md_bus_fault_kind_t: 0 loss, 1 corrupt, 2 dup, 3 delay, 4 reorder
-    double prob;          ///< per frame, required
-    double from_s, to_s;  ///< simulated-time window
-    uint32_t directions;  ///< 1 frames the simulator sends, 2 frames it receives, 3 both (default)
-    uint32_t frames;      ///< delay in frames (bus_delay; default 4)
-    uint32_t can_id;      ///< only this CAN id (has_id), else every frame
-    uint32_t has_id;
-} scenario_bus_fault_t;
-
-/// One silence of a simulated node (it sends nothing, heartbeat included).
-typedef struct {
-    uint32_t node;  ///< md_node_id_t: 2 act, 3 hall, 4 fe
-    double from_s, to_s;
-} scenario_silence_t;
-
-typedef struct {
-    uint32_t n_bus;
-    scenario_bus_fault_t bus[SCENARIO_BUS_FAULTS_MAX];
-    uint32_t n_silent;
-    scenario_silence_t silent[SCENARIO_SILENT_MAX];
-    uint32_t n_restarts;
-    double restart_at_s[SCENARIO_RESTARTS_MAX];  ///< controller restarts, ascending
-} scenario_faults_t;
 
 typedef struct {
     char name[SCENARIO_NAME_MAX];
@@ -111,9 +82,7 @@ bool scenario_node_silent(const scenario_t *sc, uint32_t node, double t_s);
 /// Number of controller restarts scheduled in (t_prev_s, t_now_s]: the
 /// launcher restarts the controller when this is non-zero.
 uint32_t scenario_restarts_due(const scenario_t *sc, double t_prev_s, double t_now_s);
-/// The same two on the faults alone (what a simnode world keeps).
-bool scenario_faults_node_silent(const scenario_faults_t *f, uint32_t node, double t_s);
-uint32_t scenario_faults_restarts_due(const scenario_faults_t *f, double t_prev_s, double t_now_s);
+/// The same two on the faults alone: scenario_faults.h.
 /// True if the scenario declares any fault at all.
 bool scenario_has_faults(const scenario_t *sc);
 /// Builds the world of a scenario with `seed`.
