@@ -151,8 +151,10 @@ md_status_t md_node_emcy(md_node_t *node, md_emcy_code_t code, uint8_t electrode
 /// Heartbeat Flags byte (MD_HB_FLAG_*) as it would be sent now.
 uint8_t md_node_heartbeat_flags(const md_node_t *node);
 
-/// Value of any parameter row as an operator would read it (live rows from the
-/// node's state and counters). 0.0 for an id out of range.
-double md_node_param_read(const md_node_t *node, md_param_id_t id, uint64_t now_us);
+/// Forgets what was heard of monitored node `node_id` (md_node_id_t) when its
+/// supervision is disabled (parameter monitor_*), which lifts the motion
+/// inhibit its silence caused; no-op while it is enabled or for an id that is
+/// not monitored. The parameter service calls it after a set. O(1).
+void md_node_monitor_refresh(md_node_t *node, uint8_t node_id);
 
 #endif

@@ -24,6 +24,7 @@
 #include "fuzz_protocol_table.h"
 #include "md_can.h"
 #include "md_node.h"
+#include "md_node_params.h"
 
 /* Every id of the DBC, so that most generated frames are well-formed and the
  * fuzzer spends its time in the handlers rather than in the form check. */
