@@ -17,7 +17,7 @@
 /// and their supervision run on it). In lockstep with the simulator (its
 /// heartbeat carries the lockstep flag, or SIM_CLOCK frames arrive) the cycle
 /// takes its own time from SIM_CLOCK and waits for the simulator's answers
-/// (REC_END, final ACT_STATUS, the SIM_CLOCK closing a SIM_STEP) instead of
+/// (REC_END, final ACT_STATUS, the SIM_CLOCK closing a SIM_ADVANCE) instead of
 /// timers; the wall clock then only bounds how long it waits (a timeout).
 #ifndef MD_CONTROLLER_H
 #define MD_CONTROLLER_H

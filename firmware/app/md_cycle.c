@@ -1,13 +1,13 @@
 /// @file md_cycle.c
 /// The electrode cycle: scheduling, recording, decision, motion, settling.
-/// See md_cycle.h; processing in md_process.c, frames in md_telemetry.c.
+/// See md_cycle.h; processing in md_interval.c, frames in md_telemetry.c.
 #include "md_cycle.h"
 
 #include <math.h>
 #include <string.h>
 
 #include "md_can.h"
-#include "md_process.h"
+#include "md_interval.h"
 #include "md_telemetry.h"
 
 #define US_PER_MS 1000u
@@ -25,10 +25,10 @@
 static void sfsm_cfg_from(const md_params_t *p, sfsm_config_t *cfg)
 {
     sfsm_config_default(cfg);
-    cfg->step_search_um = md_params_get(p, MD_P_STEP_SEARCH_UM);
-    cfg->step_sample_um = md_params_get(p, MD_P_STEP_SAMPLE_UM);
-    cfg->step_resample_um = md_params_get(p, MD_P_STEP_RESAMPLE_UM);
-    cfg->step_max_um = md_params_get(p, MD_P_STEP_MAX_UM);
+    cfg->move_search_um = md_params_get(p, MD_P_MOVE_SEARCH_UM);
+    cfg->move_sample_um = md_params_get(p, MD_P_MOVE_SAMPLE_UM);
+    cfg->move_resample_um = md_params_get(p, MD_P_MOVE_RESAMPLE_UM);
+    cfg->move_max_um = md_params_get(p, MD_P_MOVE_MAX_UM);
     cfg->gamma1 = md_params_get(p, MD_P_SFSM_GAMMA1);
     cfg->gamma2 = md_params_get(p, MD_P_SFSM_GAMMA2);
     cfg->gamma3 = md_params_get(p, MD_P_SFSM_GAMMA3);
@@ -42,8 +42,8 @@ static void sfsm_cfg_from(const md_params_t *p, sfsm_config_t *cfg)
 static void sc_cfg_from(const md_params_t *p, sc_config_t *cfg)
 {
     sc_config_default(cfg);
-    cfg->step_max_um = md_params_get(p, MD_P_STEP_MAX_UM);
-    cfg->step_sample_um = fmin(md_params_get(p, MD_P_STEP_SAMPLE_UM), cfg->step_max_um);
+    cfg->move_max_um = md_params_get(p, MD_P_MOVE_MAX_UM);
+    cfg->move_sample_um = fmin(md_params_get(p, MD_P_MOVE_SAMPLE_UM), cfg->move_max_um);
     cfg->tol_um = md_params_get(p, MD_P_SC_TOL_UM);
 }
 
@@ -64,7 +64,7 @@ static void guard_cfg_from(const md_params_t *p, ag_config_t *cfg)
     cfg->amp_slow = md_params_get(p, MD_P_GUARD_AMP_SLOW);
     cfg->amp_floor = fmin(cfg->amp_floor, cfg->amp_slow);
     cfg->amp_stop = md_params_get(p, MD_P_GUARD_AMP_STOP);
-    cfg->step_near_um = md_params_get(p, MD_P_GUARD_STEP_NEAR_UM);
+    cfg->move_near_um = md_params_get(p, MD_P_GUARD_MOVE_NEAR_UM);
     cfg->retract_um = md_params_get(p, MD_P_GUARD_RETRACT_UM);
     cfg->climb_free_frac = md_params_get(p, MD_P_GUARD_CLIMB_FRAC);
     cfg->climb_frac = fmin(cfg->climb_frac, cfg->climb_free_frac); /* a unit at its ceiling is known to be close */
@@ -72,7 +72,7 @@ static void guard_cfg_from(const md_params_t *p, ag_config_t *cfg)
 
 static void mhtc_cfg_from(const md_params_t *p, mhtc_config_t *cfg)
 {
-    mhtc_config_default(cfg, md_process_tracker(p));
+    mhtc_config_default(cfg, md_interval_tracker(p));
     const double q = md_params_get(p, MD_P_MHTC_Q_UV);
     cfg->q_process = q * q; /* µV² per waveform sample and interval (§4.4.2) */
     cfg->init_var = q * q;
@@ -150,9 +150,9 @@ uint64_t md_cycle_time_us(const md_cycle_t *c, const md_node_t *node, uint64_t n
 /* A lockstep wait not yet anchored to a SIM_CLOCK: no simulated time reaches it. */
 #define WAIT_SIM_UNANCHORED UINT64_MAX
 
-/* Lets duration_us pass: SIM_STEP in lockstep (the simulator closes it with
+/* Lets duration_us pass: SIM_ADVANCE in lockstep (the simulator closes it with
  * a SIM_CLOCK), the platform clock otherwise. In lockstep the wait starts
- * from the first SIM_CLOCK received after the SIM_STEP, not from the clock
+ * from the first SIM_CLOCK received after the SIM_ADVANCE, not from the clock
  * known now: over a socket bus the SIM_CLOCK closing the previous batch may
  * still be queued behind its REC_END / final ACT_STATUS, and a wait based on
  * the older time would end at once on it. Until anchored, wait_step_us holds
@@ -197,12 +197,12 @@ static void start_wait(md_cycle_t *c, md_node_t *node, uint32_t duration_us, uin
         return;
     }
     if (c->lockstep) {
-        struct md_can_sim_step_t m;
-        uint8_t buf[MD_CAN_SIM_STEP_LENGTH];
-        (void)md_can_sim_step_init(&m);
+        struct md_can_sim_advance_t m;
+        uint8_t buf[MD_CAN_SIM_ADVANCE_LENGTH];
+        (void)md_can_sim_advance_init(&m);
         m.duration_us = duration_us;
         m.token = ++c->sim_token;
-        (void)md_node_send(node, MD_CAN_SIM_STEP_FRAME_ID, buf, md_can_sim_step_pack(buf, &m, sizeof buf), false);
+        (void)md_node_send(node, MD_CAN_SIM_ADVANCE_FRAME_ID, buf, md_can_sim_advance_pack(buf, &m, sizeof buf), false);
         c->wait = MD_WAIT_SIM;
         c->wait_sim_us = WAIT_SIM_UNANCHORED;
         c->wait_step_us = duration_us;
@@ -300,7 +300,7 @@ static void start_recording(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     apply_params(el, node);
     const double n_d = md_params_get(&node->params, MD_P_INTERVAL_S) * (double)el->sample_rate_hz;
     const uint32_t n = (n_d >= (double)REC_SAMPLES_MAX) ? REC_SAMPLES_MAX : (uint32_t)n_d;
-    if (md_process_begin(&c->ws, el, n) != MD_OK) {
+    if (md_interval_begin(&c->ws, el, n) != MD_OK) {
         recording_failed(c, node);
         return;
     }
@@ -312,7 +312,7 @@ static void start_recording(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     el->rec_clock_seen = false;
     el->rec_end_ok = false;
     el->cost_detect = 0u;
-    el->cost_process = 0u;
+    el->cost_chain = 0u;
     el->rec_start_us = md_cycle_time_us(c, node, now_us);
     struct md_can_rec_req_t m;
     uint8_t buf[MD_CAN_REC_REQ_LENGTH];
@@ -348,7 +348,7 @@ static void on_rec_data(md_cycle_t *c, const md_node_t *node, const md_frame_t *
     }
     if (el->rec_status == MD_OK) {
         const uint64_t w0 = work_begin(node);
-        el->rec_status = md_process_push(&c->ws, x, count);
+        el->rec_status = md_interval_push(&c->ws, x, count);
         el->cost_detect += work_end(node, w0);
     }
     el->rec_samples += count;
@@ -397,7 +397,7 @@ static void skip_cycle(md_cycle_t *c, md_node_t *node, md_status_t st, uint64_t 
 }
 
 /* SNR curve and SFSM (§2.2.3-2.2.4); returns the step the SFSM asks for. */
-static double decide(md_electrode_t *el, const md_node_t *node, const md_process_out_t *po, double depth)
+static double decide(md_electrode_t *el, const md_node_t *node, const md_interval_out_t *po, double depth)
 {
     sc_config_t scc;
     sc_cfg_from(&node->params, &scc);
@@ -422,7 +422,7 @@ static double decide(md_electrode_t *el, const md_node_t *node, const md_process
     }
     sfsm_output_t out;
     memset(&out, 0, sizeof out);
-    if (sfsm_step(&el->sfsm, &in, &out) != MD_OK) {
+    if (sfsm_decide(&el->sfsm, &in, &out) != MD_OK) {
         return 0.0; /* invalid input: the SFSM is in HALTED and asks for nothing */
     }
     el->resume = false;
@@ -430,12 +430,12 @@ static double decide(md_electrode_t *el, const md_node_t *node, const md_process
         (void)sc_table_reset_track(&el->curves, out.reset_track);
     }
     el->flags |= (out.clamped ? MD_TLM_F_CLAMPED : 0u) | ((uint32_t)out.reason << MD_TLM_REASON_SHIFT);
-    return out.step_um;
+    return out.move_um;
 }
 
 /* The guard's units: the robust amplitude of all detections (no tracker) and
  * the SNR of every track the leading hypothesis detected this interval. */
-static size_t guard_units(const md_workspace_t *ws, const md_process_out_t *po, ag_unit_t *unit)
+static size_t guard_units(const md_workspace_t *ws, const md_interval_out_t *po, ag_unit_t *unit)
 {
     size_t n = 0u;
     unit[n++] = (ag_unit_t){AG_UNIT_RAW, po->amp};
@@ -450,13 +450,13 @@ static size_t guard_units(const md_workspace_t *ws, const md_process_out_t *po, 
 /* Approach guard after the SFSM (approach_guard.h): may shorten, cancel or
  * reverse the step, in every state and with every tracker. Computed and
  * reported even when disabled, so its effect can be measured. */
-static double guard(md_electrode_t *el, const md_node_t *node, const md_workspace_t *ws, const md_process_out_t *po,
+static double guard(md_electrode_t *el, const md_node_t *node, const md_workspace_t *ws, const md_interval_out_t *po,
                     double depth, double step)
 {
     ag_unit_t unit[AG_UNITS_MAX];
     const ag_input_t in = {unit, guard_units(ws, po, unit), depth, step};
     ag_output_t out;
-    if (ag_step(&el->guard, &in, &out) != MD_OK) {
+    if (ag_apply(&el->guard, &in, &out) != MD_OK) {
         el->flags |= MD_TLM_F_GUARD_LIMITED;
         el->guard_limited++;
         return 0.0; /* the guard cannot judge: hold */
@@ -467,7 +467,7 @@ static double guard(md_electrode_t *el, const md_node_t *node, const md_workspac
     }
     el->flags |= MD_TLM_F_GUARD_LIMITED | ((out.action == AG_RETRACT) ? MD_TLM_F_GUARD_RETRACT : 0u);
     el->guard_limited++;
-    return out.step_um;
+    return out.move_um;
 }
 
 /* The electrode's depth as TLM_STATUS reports it (float32). The tracker's
@@ -496,7 +496,7 @@ static uint32_t cycle_start_flags(const md_cycle_t *c, const md_electrode_t *el)
  * and the approach guard ask for; 0 without a calibrated depth (no decision
  * without one). */
 static double decide_step(md_electrode_t *el, const md_node_t *node, const md_workspace_t *ws,
-                          const md_process_out_t *po)
+                          const md_interval_out_t *po)
 {
     el->has_dominant = po->has_dominant;
     el->dominant = po->dominant;
@@ -525,7 +525,7 @@ static bool begin_move(md_electrode_t *el, const md_node_t *node, double step)
     const bool move = cycle_allowed(node) &&
                       md_servo_begin(&el->servo, el->target_um, md_params_get(&node->params, MD_P_DEPTH_MIN_UM),
                                      md_params_get(&node->params, MD_P_DEPTH_MAX_UM),
-                                     md_params_get(&node->params, MD_P_STEP_MAX_UM)) == MD_OK;
+                                     md_params_get(&node->params, MD_P_MOVE_MAX_UM)) == MD_OK;
     el->flags |= move ? MD_TLM_F_MOVE : MD_TLM_F_INHIBITED;
     el->inhibited += move ? 0u : 1u;
     return move;
@@ -536,17 +536,17 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     const uint64_t w0 = work_begin(node);
     md_electrode_t *el = &c->el[c->active];
     el->flags = cycle_start_flags(c, el);
-    md_process_out_t po;
+    md_interval_out_t po;
     const double duration_s = (double)el->rec_samples / (double)el->sample_rate_hz;
     md_status_t st = (el->rec_status != MD_OK) ? el->rec_status : MD_OK;
     double here = 0.0;
     const bool here_ok = reported_depth_um(el, &here);
     el->move_um = (here_ok && el->tracked_depth_ok) ? fabs(here - el->tracked_depth_um) : 0.0;
     if (st == MD_OK) {
-        st = md_process_interval(&c->ws, el, duration_s, md_params_get(&node->params, MD_P_MIN_RATE_HZ), &po);
+        st = md_interval_run(&c->ws, el, duration_s, md_params_get(&node->params, MD_P_MIN_RATE_HZ), &po);
     }
     if (st != MD_OK) {
-        el->cost_process = work_end(node, w0);
+        el->cost_chain = work_end(node, w0);
         skip_cycle(c, node, st, now_us); /* tracks and SFSM untouched */
         return;
     }
@@ -555,7 +555,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     const double step = decide_step(el, node, &c->ws, &po);
     el->target_um = el->depth_um + step;
     const bool move = begin_move(el, node, step);
-    el->cost_process = work_end(node, w0);
+    el->cost_chain = work_end(node, w0);
     (void)md_tlm_cycle(node, c->active, el, MD_TLM_PHASE_PROCESSED, el->rec_samples);
     (void)md_tlm_status(node, c->active, el, po.n_spikes);
     (void)md_tlm_interval(node, c->active, el, &c->ws);
@@ -685,7 +685,7 @@ void md_cycle_on_frame(md_cycle_t *c, md_node_t *node, const md_frame_t *f, bool
     }
     md_electrode_t *el = &c->el[c->active];
     if (f->id == MD_CAN_SIM_CLOCK_FRAME_ID && c->wait == MD_WAIT_SIM && c->wait_sim_us == WAIT_SIM_UNANCHORED) {
-        c->wait_sim_us = node->sim_time_us + c->wait_step_us; /* the SIM_STEP's time starts here */
+        c->wait_sim_us = node->sim_time_us + c->wait_step_us; /* the SIM_ADVANCE's time starts here */
     }
     if (f->id == MD_CAN_SIM_CLOCK_FRAME_ID && el->phase == MD_CYC_RECORDING && !el->rec_clock_seen) {
         el->rec_clock_seen = true;
@@ -766,7 +766,7 @@ void md_cycle_poll(md_cycle_t *c, md_node_t *node, uint64_t now_us)
         return;
     }
     if (!wait_done(c, node, now_us)) {
-        if (answer_late(c, now_us)) { /* the simulator never closed the SIM_STEP */
+        if (answer_late(c, now_us)) { /* the simulator never closed the SIM_ADVANCE */
             el->timeouts++;
             c->wait = MD_WAIT_NONE;
             if (el->phase == MD_CYC_MOVING) {

@@ -5,11 +5,11 @@
 ///   process PCA of the interval's windows, features, noise covariance Ξ,
 ///           MHTC step with the interval's basis, per-track SNR, isolation
 ///           distance of the dominant track (pipeline/interval_chain.h,
-///           through md_process.h);
+///           through md_interval.h);
 ///   decide  SNR curve (§2.2.3) + SFSM (§2.2.4, Table 2.1);
 ///   move    depth servo to depth + step (md_servo.h), only if the SFSM asked
 ///           and the node allows motion;
-///   settle  SIM_STEP in lockstep, a timed wait otherwise;
+///   settle  SIM_ADVANCE in lockstep, a timed wait otherwise;
 ///   and telemetry of every cycle (md_telemetry.h).
 ///
 /// Memory: per electrode md_electrode_t (tracker, curves, SFSM, servo) and
@@ -102,11 +102,11 @@ typedef struct {
     double move_um;           ///< travel since that interval (0 if unknown): the tracker's Q grows with it
     double target_um;         ///< requested target of the last decision
     bool has_dominant;
-    uint32_t dominant;      ///< dominant track id
-    double snr, iqm;        ///< of the dominant track
-    uint32_t flags;         ///< MD_TLM_F_* of the last cycle
-    uint64_t cost_detect;   ///< work (md_port_t work_now units) of this interval's detection (REC_DATA)
-    uint64_t cost_process;  ///< work of processing, scoring and deciding the last interval
+    uint32_t dominant;     ///< dominant track id
+    double snr, iqm;       ///< of the dominant track
+    uint32_t flags;        ///< MD_TLM_F_* of the last cycle
+    uint64_t cost_detect;  ///< work (md_port_t work_now units) of this interval's detection (REC_DATA)
+    uint64_t cost_chain;   ///< work of processing, scoring and deciding the last interval
     md_servo_result_t last_move;
     /* counters */
     uint32_t cycles, skipped, rec_failed, moves, moves_failed, inhibited, timeouts, guard_limited;
@@ -125,12 +125,12 @@ typedef struct {
     bool was_operational;  ///< node state at the previous call (resume detection)
     md_wait_t wait;
     uint64_t wait_sim_us;      ///< MD_WAIT_SIM: simulated time that ends the wait
-    uint32_t wait_step_us;     ///< MD_WAIT_SIM: the SIM_STEP's duration (anchored at the next SIM_CLOCK)
+    uint32_t wait_step_us;     ///< MD_WAIT_SIM: the SIM_ADVANCE's duration (anchored at the next SIM_CLOCK)
     uint64_t wait_wall_us;     ///< MD_WAIT_WALL: platform time that ends the wait
     uint64_t timeout_wall_us;  ///< the current wait/answer ends here in platform time
     uint64_t plant_alive_us;   ///< platform time of the plant's latest frame (lockstep timeouts)
     uint64_t answer_us;        ///< platform time of the latest request or answer frame (lockstep)
-    uint8_t sim_token;         ///< SIM_STEP Token
+    uint8_t sim_token;         ///< SIM_ADVANCE Token
     uint32_t cycles;           ///< cycles completed, all electrodes
 } md_cycle_t;
 

@@ -140,7 +140,7 @@ bool md_node_motion_allowed(const md_node_t *node);
 /// bad electrode/direction, MD_E_IO if the send failed (counted).
 md_status_t md_node_step(md_node_t *node, uint8_t electrode, uint8_t direction, uint16_t steps, uint16_t rate_hz);
 
-/// Sends one frame the controller owns (telemetry, REC_REQ, SIM_STEP, ...):
+/// Sends one frame the controller owns (telemetry, REC_REQ, SIM_ADVANCE, ...):
 /// counted in tx_frames / tx_failures. `fd` marks a CAN FD frame. MD_E_ARG
 /// on a bad length, MD_E_IO if the platform refused it.
 md_status_t md_node_send(md_node_t *node, uint32_t id, const uint8_t *data, int len, bool fd);

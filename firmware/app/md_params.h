@@ -19,7 +19,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_protocol.h"
 
 /// Row flags.
@@ -41,10 +41,10 @@ typedef enum {
     MD_P_AUTO_START,            ///< go operational by itself after boot (CANopen 0x1F80)
     /* closed loop placeholders (0x2xxx), used by the electrode cycle */
     MD_P_INTERVAL_S,           ///< recording interval length
-    MD_P_STEP_MAX_UM,          ///< Delta_max, cap of one step (thesis §2.2.3, after eq. 2.1)
-    MD_P_STEP_SEARCH_UM,       ///< Delta_search
-    MD_P_STEP_SAMPLE_UM,       ///< Delta_sample
-    MD_P_STEP_RESAMPLE_UM,     ///< Delta_resample (retracting)
+    MD_P_MOVE_MAX_UM,          ///< Delta_max, cap of one step (thesis §2.2.3, after eq. 2.1)
+    MD_P_MOVE_SEARCH_UM,       ///< Delta_search
+    MD_P_MOVE_SAMPLE_UM,       ///< Delta_sample
+    MD_P_MOVE_RESAMPLE_UM,     ///< Delta_resample (retracting)
     MD_P_DEPTH_MIN_UM,         ///< depth window, shallow end
     MD_P_DEPTH_MAX_UM,         ///< depth window, deep end
     MD_P_SETTLE_MS,            ///< wait after a move before the next recording
@@ -70,7 +70,7 @@ typedef enum {
     MD_P_GUARD_GROWTH_STOP,    ///< approach guard: ln-amplitude growth per µm that blocks advancing
     MD_P_GUARD_AMP_SLOW,       ///< approach guard: amplitude from which advances are shortened
     MD_P_GUARD_AMP_STOP,       ///< approach guard: amplitude that blocks advancing
-    MD_P_GUARD_STEP_NEAR_UM,   ///< approach guard: longest advance at or above guard_amp_slow
+    MD_P_GUARD_MOVE_NEAR_UM,   ///< approach guard: longest advance at or above guard_amp_slow
     MD_P_GUARD_RETRACT_UM,     ///< approach guard: retraction when the unit climbs at a barrier
     MD_P_GUARD_CLIMB_FRAC,     ///< approach guard: climb over the lowest standstill level that retracts
     /* diagnostics (0x3xxx), read-only */

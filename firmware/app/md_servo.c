@@ -225,10 +225,10 @@ md_status_t md_servo_depth_um(const md_servo_t *s, double *depth_um)
 /* Moves                                                               */
 /* ------------------------------------------------------------------ */
 
-md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um, double step_max_um)
+md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um, double move_max_um)
 {
     if (s == NULL || !isfinite(target_um) || !isfinite(win_min_um) || !isfinite(win_max_um) ||
-        !(win_min_um < win_max_um) || !(step_max_um > 0.0) || !isfinite(step_max_um)) {
+        !(win_min_um < win_max_um) || !(move_max_um > 0.0) || !isfinite(move_max_um)) {
         return MD_E_ARG;
     }
     if (s->phase != MD_SERVO_IDLE) {
@@ -241,7 +241,7 @@ md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, d
     s->target_um = target_um;
     s->win_min_um = win_min_um;
     s->win_max_um = win_max_um;
-    s->step_max_um = step_max_um;
+    s->move_max_um = move_max_um;
     s->have_start = false;
     s->iter = 0u;
     s->waits = 0u;
@@ -384,8 +384,8 @@ static void set_region(md_servo_t *s, double d0)
 {
     s->have_start = true;
     s->start_um = d0;
-    s->region_lo_um = fmax(s->win_min_um, d0 - s->step_max_um);
-    s->region_hi_um = fmin(s->win_max_um, d0 + s->step_max_um);
+    s->region_lo_um = fmax(s->win_min_um, d0 - s->move_max_um);
+    s->region_hi_um = fmin(s->win_max_um, d0 + s->move_max_um);
     s->goal_um = fmax(s->region_lo_um, fmin(s->region_hi_um, s->target_um));
     if (s->goal_um < s->target_um || s->goal_um > s->target_um) {
         s->stats.clamped++;

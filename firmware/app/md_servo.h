@@ -90,7 +90,7 @@ typedef struct {
 typedef enum {
     MD_SERVO_A_NONE = 0,  ///< nothing: waiting for an ACT_STATUS or a reading
     MD_SERVO_A_STEP,      ///< send ACT_CMD step (direction, steps, rate_hz), then md_servo_sent()
-    MD_SERVO_A_WAIT,      ///< let wait_us pass (SIM_STEP in lockstep, a timer otherwise), then call again
+    MD_SERVO_A_WAIT,      ///< let wait_us pass (SIM_ADVANCE in lockstep, a timer otherwise), then call again
     MD_SERVO_A_FINISHED   ///< the move is over: see md_servo_t.result
 } md_servo_action_kind_t;
 
@@ -162,7 +162,7 @@ typedef struct {
     double target_um;  ///< requested target
     double goal_um;    ///< target clamped into the region
     double region_lo_um, region_hi_um;
-    double win_min_um, win_max_um, step_max_um;
+    double win_min_um, win_max_um, move_max_um;
     bool have_start;    ///< d0 measured (region known)
     double start_um;    ///< d0
     double depth_um;    ///< latest depth measured by a move (this one or the last)
@@ -227,11 +227,11 @@ void md_servo_clear_readings(md_servo_t *s);
 md_status_t md_servo_depth_um(const md_servo_t *s, double *depth_um);
 
 /// Starts a move to target_um inside [win_min_um, win_max_um] and at most
-/// step_max_um from the depth measured first (fresh readings are collected
+/// move_max_um from the depth measured first (fresh readings are collected
 /// before anything moves). MD_E_ARG on non-finite or inconsistent arguments
 /// (nothing changes), MD_E_STATE if a move is in progress or motion is
 /// latched off after a runaway (counted). O(1).
-md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um, double step_max_um);
+md_status_t md_servo_begin(md_servo_t *s, double target_um, double win_min_um, double win_max_um, double move_max_um);
 
 /// The caller sent the ACT_CMD step of the last MD_SERVO_A_STEP with this Seq. O(1).
 void md_servo_sent(md_servo_t *s, uint8_t seq);

@@ -69,9 +69,9 @@ md_status_t md_tlm_status(md_node_t *node, uint8_t e, const md_electrode_t *el, 
     m.flags = el->flags;
     m.num_spikes = (uint16_t)((num_spikes > UINT16_MAX) ? UINT16_MAX : num_spikes);
     m.guard_amp = md_can_tlm_status_guard_amp_encode(fmin(fmax(el->guard_amp, 0.0), 655.35));
-    const uint64_t total = el->cost_detect + el->cost_process;
+    const uint64_t total = el->cost_detect + el->cost_chain;
     m.cycle_cost = (total > UINT32_MAX) ? UINT32_MAX : (uint32_t)total;
-    m.process_cost = (el->cost_process > UINT32_MAX) ? UINT32_MAX : (uint32_t)el->cost_process;
+    m.process_cost = (el->cost_chain > UINT32_MAX) ? UINT32_MAX : (uint32_t)el->cost_chain;
     return md_node_send(node, MD_CAN_TLM_STATUS_FRAME_ID, buf, md_can_tlm_status_pack(buf, &m, sizeof buf), true);
 }
 

@@ -190,7 +190,7 @@ static void plant_on_estop(simnode_plant_t *p, const md_frame_t *f)
     simnode_fe_abort(&p->fe, UINT32_MAX);
 }
 
-/* SIM_STEP (lockstep only): the front-end lets Duration_us of simulated time
+/* SIM_ADVANCE (lockstep only): the front-end lets Duration_us of simulated time
  * pass with nothing commanded, e.g. for the tissue to settle after a motion.
  * The answer is a batch like any other: SIM_CLOCK(t), the plant's periodic
  * frames that fall in (t, t + d] in time order, SIM_CLOCK(t + d); a zero
@@ -199,10 +199,10 @@ static void plant_on_estop(simnode_plant_t *p, const md_frame_t *f)
  * realtime mode where the wall clock moves time. */
 static void plant_on_step(simnode_plant_t *p, const md_frame_t *f)
 {
-    struct md_can_sim_step_t m;
+    struct md_can_sim_advance_t m;
     simnode_t *fe = &p->fe.node;
-    if (f->len != MD_CAN_SIM_STEP_LENGTH || (f->flags & MD_FRAME_FLAG_FD) != 0u ||
-        md_can_sim_step_unpack(&m, f->data, f->len) != 0) {
+    if (f->len != MD_CAN_SIM_ADVANCE_LENGTH || (f->flags & MD_FRAME_FLAG_FD) != 0u ||
+        md_can_sim_advance_unpack(&m, f->data, f->len) != 0) {
         simnode_malformed(fe, f->id);
         return;
     }
@@ -250,7 +250,7 @@ static void plant_dispatch(simnode_plant_t *p, const md_frame_t *f)
     }
     case MD_CAN_REC_REQ_FRAME_ID: (void)simnode_fe_on_req(&p->fe, f, p->now_us); break;
     case MD_CAN_SIM_CLOCK_FRAME_ID: p->stats.rx_foreign_clock++; break;
-    case MD_CAN_SIM_STEP_FRAME_ID: plant_on_step(p, f); break;
+    case MD_CAN_SIM_ADVANCE_FRAME_ID: plant_on_step(p, f); break;
     default: p->stats.rx_ignored++; break;
     }
     p->stats.rx_malformed += p->act.node.stats.rx_malformed + p->fe.node.stats.rx_malformed - malformed_before;

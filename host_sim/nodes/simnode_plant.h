@@ -4,7 +4,7 @@
 ///
 /// Received frames are validated here once (id, length, ranges) and routed:
 /// ESTOP -> actuator (halt + latch) and front-end (abort stream); NMT -> every
-/// addressed node; ACT_CMD -> actuator; REC_REQ -> front-end; SIM_STEP ->
+/// addressed node; ACT_CMD -> actuator; REC_REQ -> front-end; SIM_ADVANCE ->
 /// the front-end, which lets time pass (lockstep settling). Other ids are
 /// not ours and are ignored (counted); malformed frames are counted and
 /// ignored.
@@ -16,7 +16,7 @@
 ///    the plant from the frame's arrival until no motion and no stream is
 ///    left, instantly in wall time. The frames one received frame causes form
 ///    a batch: SIM_CLOCK(t_start) goes before its first frame, and
-///    SIM_CLOCK(t_end) after its last one if time moved. SIM_STEP(d) is the
+///    SIM_CLOCK(t_end) after its last one if time moved. SIM_ADVANCE(d) is the
 ///    one frame that moves time with nothing commanded: the batch always
 ///    opens with SIM_CLOCK(t) and closes with SIM_CLOCK(t + d) (d > 0), with
 ///    the periodic frames of (t, t + d] between. The output is a pure
@@ -54,7 +54,7 @@ typedef struct {
     uint64_t rx_foreign_clock;  ///< SIM_CLOCK from someone else: a second simulator on the bus?
     uint64_t clock_frames;      ///< SIM_CLOCK frames sent
     uint64_t batches;           ///< lockstep batches that sent frames
-    uint64_t steps;             ///< SIM_STEP requests served (lockstep settling)
+    uint64_t steps;             ///< SIM_ADVANCE requests served (lockstep settling)
 } simnode_plant_stats_t;
 
 typedef struct {

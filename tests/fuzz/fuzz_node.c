@@ -43,7 +43,7 @@ static const known_id_t KNOWN[] = {FUZZ_FRAMES};
 
 /* Ids the controller itself transmits, with their lengths. */
 static const known_id_t OWN_TX[] = {
-    {MD_CAN_SIM_STEP_FRAME_ID, MD_CAN_SIM_STEP_LENGTH, false},
+    {MD_CAN_SIM_ADVANCE_FRAME_ID, MD_CAN_SIM_ADVANCE_LENGTH, false},
     {MD_CAN_EMCY_CTRL_FRAME_ID, MD_CAN_EMCY_CTRL_LENGTH, false},
     {MD_CAN_ACT_CMD_FRAME_ID, MD_CAN_ACT_CMD_LENGTH, false},
     {MD_CAN_REC_REQ_FRAME_ID, MD_CAN_REC_REQ_LENGTH, false},

@@ -1,4 +1,4 @@
-/* Host unit: SIM_STEP (lockstep settling) in the simulator's plant, and the
+/* Host unit: SIM_ADVANCE (lockstep settling) in the simulator's plant, and the
  * ground truth's `interval` record that aligns a recording's samples with the
  * electrode's sample clock (docs/sim-process.md, docs/session.md). Default
  * world (3 electrodes, 30 kHz, no neurons), frames captured from the sink. */
@@ -79,10 +79,10 @@ static void put(uint32_t id, const uint8_t *data, uint8_t len, uint8_t flags)
 
 static void send_step(uint32_t duration_us, uint8_t token)
 {
-    const struct md_can_sim_step_t m = {duration_us, token};
+    const struct md_can_sim_advance_t m = {duration_us, token};
     uint8_t d[8];
-    TEST_ASSERT_EQUAL_INT(8, md_can_sim_step_pack(d, &m, sizeof d));
-    put(MD_CAN_SIM_STEP_FRAME_ID, d, 8u, 0u);
+    TEST_ASSERT_EQUAL_INT(8, md_can_sim_advance_pack(d, &m, sizeof d));
+    put(MD_CAN_SIM_ADVANCE_FRAME_ID, d, 8u, 0u);
 }
 
 static void send_rec(uint8_t e, uint16_t interval, uint32_t n)
@@ -193,8 +193,8 @@ static void test_recording_after_a_step_starts_at_its_end(void)
 static void test_malformed_refused_and_realtime_steps_get_no_answer(void)
 {
     const uint8_t d[8] = {0x10, 0x27, 0, 0, 5, 0, 0, 0};
-    put(MD_CAN_SIM_STEP_FRAME_ID, d, 7u, 0u);               /* wrong length */
-    put(MD_CAN_SIM_STEP_FRAME_ID, d, 8u, MD_FRAME_FLAG_FD); /* FD flag */
+    put(MD_CAN_SIM_ADVANCE_FRAME_ID, d, 7u, 0u);               /* wrong length */
+    put(MD_CAN_SIM_ADVANCE_FRAME_ID, d, 8u, MD_FRAME_FLAG_FD); /* FD flag */
     TEST_ASSERT_EQUAL_size_t(2u, plant.fe.node.stats.rx_malformed);
     TEST_ASSERT_EQUAL_UINT64(2u, plant.stats.rx_malformed);
     TEST_ASSERT_EQUAL_size_t(2u, count_id(MD_CAN_EMCY_FE_FRAME_ID)); /* 1st and 2nd */
@@ -211,7 +211,7 @@ static void test_malformed_refused_and_realtime_steps_get_no_answer(void)
     TEST_ASSERT_EQUAL_size_t(0u, n_cap);
     TEST_ASSERT_EQUAL_UINT64(1u, plant.fe.node.stats.rx_refused);
     TEST_ASSERT_EQUAL_UINT64(0u, plant.now_us);
-    /* realtime: the wall clock moves time, SIM_STEP is ignored */
+    /* realtime: the wall clock moves time, SIM_ADVANCE is ignored */
     make_plant(false, 11u);
     send_step(5000u, 5u);
     TEST_ASSERT_EQUAL_size_t(0u, n_cap);

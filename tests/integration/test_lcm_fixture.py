@@ -214,7 +214,7 @@ def update_tracks(rnd, e, k, alive):
     return rows
 
 
-def sfsm_step(e, rows):
+def sfsm_decide(e, rows):
     best = max((r[3] for r in rows if r[2]), default=0.0)
     e.best_seen = max(getattr(e, "best_seen", 0.0), best)
     if e.state in (3, 5) and best < 3.0:
@@ -244,7 +244,7 @@ def cycle_frames_end(w, rnd, e, k, t0, t1, spikes, alive, exp):
                             "start_time_us": t0, "num_samples": int(INTERVAL_S * FS), "sample_rate_hz": FS})
     w.hold()  # the controller sends TLM_STATUS before the tracks (firmware/app/md_telemetry.c)
     rows = update_tracks(rnd, e, k, alive)
-    best, step = sfsm_step(e, rows)
+    best, step = sfsm_decide(e, rows)
     tracks = {"electrode": e.index, "cycle": k, "utime": t1, "track_id": [], "spike_count": [], "mean_pc": [],
               "snr": [], "missed": [], "wave": []}
     label = {}

@@ -37,7 +37,7 @@ import score  # noqa: E402  (tools/session/score.py: the one reader of the telem
 
 TRACK_UNLABELLED = score.TRACK_UNLABELLED
 TLM_F_SKIPPED = 0x0001            # firmware/app/md_cycle.h MD_TLM_F_SKIPPED
-TRACKER_PARAM = {"mhtc": 0, "map-nn": 1, "ml-nn": 2, "gnn": 3}   # md_process_tracker
+TRACKER_PARAM = {"mhtc": 0, "map-nn": 1, "ml-nn": 2, "gnn": 3}   # md_interval_tracker
 
 
 def run(cmd):

@@ -35,7 +35,7 @@ static ag_output_t step1(double amp, double depth, double want)
     const ag_unit_t u = {AG_UNIT_RAW, amp};
     const ag_input_t in = {&u, 1u, depth, want};
     ag_output_t out;
-    TEST_ASSERT_EQUAL_INT(MD_OK, ag_step(&g, &in, &out));
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
     return out;
 }
 
@@ -49,8 +49,8 @@ static double approach(double a0, double r_um, int cycles)
         const double x = 200.0 - z;
         closest = fmin(closest, hypot(r_um, x));
         const ag_output_t out = step1(law(a0, r_um, x), z, 20.0);
-        TEST_ASSERT_TRUE(out.step_um <= 20.0);
-        z += out.step_um;
+        TEST_ASSERT_TRUE(out.move_um <= 20.0);
+        z += out.move_um;
     }
     return closest;
 }
@@ -61,7 +61,7 @@ static double approach_until_ceiling(void)
 {
     double z = 0.0;
     for (int k = 0; k < 40 && g.n_ceil == 0u; ++k) {
-        z += step1(law(80.0, 0.0, 200.0 - z), z, 20.0).step_um;
+        z += step1(law(80.0, 0.0, 200.0 - z), z, 20.0).move_um;
     }
     TEST_ASSERT_EQUAL_UINT8(1u, g.n_ceil);
     return z;
@@ -91,13 +91,13 @@ static void test_a_neuron_passed_at_a_safe_distance_does_not_stop_the_advance(vo
 static void test_advances_are_shortened_once_a_unit_is_loud(void)
 {
     ag_output_t out = step1(cfg.amp_slow - 1.0, 0.0, 30.0);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 30.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 30.0, out.move_um);
     TEST_ASSERT_EQUAL_INT(AG_PASS, out.action);
     out = step1(cfg.amp_slow + 1.0, 30.0, 30.0);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-9, cfg.step_near_um, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, cfg.move_near_um, out.move_um);
     TEST_ASSERT_EQUAL_INT(AG_SLOWED, out.action);
     out = step1(cfg.amp_slow + 1.0, 40.0, -30.0); /* retractions are never shortened */
-    TEST_ASSERT_DOUBLE_WITHIN(1e-9, -30.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, -30.0, out.move_um);
 }
 
 static void test_noise_at_a_standstill_never_retracts(void)
@@ -109,7 +109,7 @@ static void test_noise_at_a_standstill_never_retracts(void)
         const double noise = ((double)(x >> 16 & 0x7FFFu) / 32767.0 - 0.5) * 0.16;
         const ag_output_t out = step1(30.0 * (1.0 + noise), 100.0, 0.0);
         TEST_ASSERT_EQUAL_INT(AG_PASS, out.action);
-        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.move_um);
     }
     TEST_ASSERT_EQUAL_UINT32(0u, g.retractions);
 }
@@ -124,12 +124,12 @@ static void test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way(vo
         const ag_unit_t u[2] = {{AG_UNIT_RAW, 40.0}, {7u, 16.0 * pow(1.05, k)}};
         const ag_input_t in = {u, 2u, z, 0.0};
         ag_output_t out;
-        TEST_ASSERT_EQUAL_INT(MD_OK, ag_step(&g, &in, &out));
+        TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
         if (out.action == AG_RETRACT) {
-            TEST_ASSERT_DOUBLE_WITHIN(1e-9, -cfg.retract_um, out.step_um);
+            TEST_ASSERT_DOUBLE_WITHIN(1e-9, -cfg.retract_um, out.move_um);
             retractions++;
         }
-        z += out.step_um;
+        z += out.move_um;
     }
     TEST_ASSERT_TRUE(retractions >= 1);
     TEST_ASSERT_TRUE(z < 100.0);
@@ -150,8 +150,8 @@ static void test_a_slow_creep_towards_a_standing_tip_adds_up_to_a_retraction(voi
         const double noise = ((double)(x >> 16 & 0x7FFFu) / 32767.0 - 0.5) * 0.08;
         closest = fmin(closest, hypot(6.0, soma - z));
         const ag_output_t out = step1(law(50.0, 6.0, soma - z) * (1.0 + noise), z, 0.0);
-        TEST_ASSERT_TRUE(out.step_um <= 0.0);
-        z += out.step_um;
+        TEST_ASSERT_TRUE(out.move_um <= 0.0);
+        z += out.move_um;
         soma -= 0.3;
     }
     TEST_ASSERT_TRUE(g.retractions >= 1u);
@@ -164,7 +164,7 @@ static void test_a_unit_saturating_at_a_ceiling_holds_the_electrode_without_retr
     const double ceiling = g.ceil[0].amp;
     for (int k = 0; k < 50; ++k) { /* the SFSM keeps asking; the unit stays where it is */
         const ag_output_t out = step1(ceiling, z, 10.0);
-        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.move_um);
         TEST_ASSERT_EQUAL_INT(AG_BLOCKED, out.action);
     }
     TEST_ASSERT_EQUAL_UINT32(0u, g.retractions);
@@ -175,9 +175,9 @@ static void test_the_electrode_follows_a_unit_that_moves_away(void)
     const double z = approach_until_ceiling();
     const double ceiling = g.ceil[0].amp;
     const ag_output_t out = step1(ceiling * 0.8, z, 10.0); /* the unit drifted away: some room again */
-    TEST_ASSERT_TRUE(out.step_um > 0.0);
-    TEST_ASSERT_TRUE(out.step_um <= 10.0);
-    TEST_ASSERT_TRUE(out.step_um <= log(1.0 / 0.8) / cfg.growth_stop + 1e-9);
+    TEST_ASSERT_TRUE(out.move_um > 0.0);
+    TEST_ASSERT_TRUE(out.move_um <= 10.0);
+    TEST_ASSERT_TRUE(out.move_um <= log(1.0 / 0.8) / cfg.growth_stop + 1e-9);
 }
 
 static void test_an_artefact_burst_does_not_freeze_the_search(void)
@@ -189,24 +189,24 @@ static void test_an_artefact_burst_does_not_freeze_the_search(void)
         const ag_unit_t u[2] = {{AG_UNIT_RAW, 9.0}, {3u, 20.0 * pow(3.0, k)}};
         const ag_input_t in = {u, 2u, z, 20.0};
         ag_output_t out;
-        TEST_ASSERT_EQUAL_INT(MD_OK, ag_step(&g, &in, &out));
-        z += out.step_um;
+        TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
+        z += out.move_um;
     }
     for (int k = 0; k < (int)AG_HISTORY + 2; ++k) {
-        z += step1(9.0, z, 20.0).step_um;
+        z += step1(9.0, z, 20.0).move_um;
     }
     TEST_ASSERT_EQUAL_UINT8(0u, g.n_ceil);
     const ag_output_t out = step1(9.0, z, 20.0);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 20.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 20.0, out.move_um);
 }
 
 static void test_amp_stop_is_a_ceiling_for_every_unit(void)
 {
     ag_output_t out = step1(cfg.amp_stop, 0.0, 5.0);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.move_um);
     TEST_ASSERT_EQUAL_INT(AG_BLOCKED, out.action);
     out = step1(cfg.amp_stop * 0.9, 0.0, 30.0);
-    TEST_ASSERT_TRUE(out.step_um > 0.0 && out.step_um <= log(1.0 / 0.9) / cfg.growth_stop + 1e-9);
+    TEST_ASSERT_TRUE(out.move_um > 0.0 && out.move_um <= log(1.0 / 0.9) / cfg.growth_stop + 1e-9);
 }
 
 static void test_invalid_input_holds_and_is_counted(void)
@@ -215,19 +215,19 @@ static void test_invalid_input_holds_and_is_counted(void)
     ag_output_t out;
     for (size_t i = 0u; i < 2u; ++i) {
         const ag_input_t in = {&bad[i], 1u, 0.0, 20.0};
-        TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(&g, &in, &out));
-        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.step_um);
+        TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &in, &out));
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.move_um);
         TEST_ASSERT_EQUAL_INT(AG_BAD_INPUT, out.action);
     }
     const ag_unit_t ok = {AG_UNIT_RAW, 10.0};
     const ag_input_t nan_depth = {&ok, 1u, NAN, 20.0};
     const ag_input_t too_many = {&ok, AG_UNITS_MAX + 1u, 0.0, 20.0};
     const ag_input_t null_units = {NULL, 1u, 0.0, 20.0};
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(&g, &nan_depth, &out));
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(&g, &too_many, &out));
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(&g, &null_units, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &nan_depth, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &too_many, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &null_units, &out));
     TEST_ASSERT_EQUAL_UINT32(5u, g.bad_inputs);
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_step(NULL, &nan_depth, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(NULL, &nan_depth, &out));
     ag_config_t c = cfg;
     c.amp_slow = c.amp_stop;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));

@@ -5,7 +5,7 @@
 #include <string.h>
 
 #include "cluster/cluster.h"
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "unity.h"
 
 void setUp(void) {}

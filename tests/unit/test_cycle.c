@@ -7,7 +7,7 @@
 
 #include "md_can.h"
 #include "md_controller.h"
-#include "md_process.h"
+#include "md_interval.h"
 #include "md_telemetry.h"
 #include "unity.h"
 
@@ -299,9 +299,9 @@ static void run(uint32_t rounds)
                 answer_rec_req(&f);
             } else if (f.id == MD_CAN_ACT_CMD_FRAME_ID) {
                 answer_act_cmd(&f);
-            } else if (f.id == MD_CAN_SIM_STEP_FRAME_ID) {
-                struct md_can_sim_step_t s;
-                TEST_ASSERT_EQUAL_INT(0, md_can_sim_step_unpack(&s, f.data, f.len));
+            } else if (f.id == MD_CAN_SIM_ADVANCE_FRAME_ID) {
+                struct md_can_sim_advance_t s;
+                TEST_ASSERT_EQUAL_INT(0, md_can_sim_advance_unpack(&s, f.data, f.len));
                 TEST_ASSERT_FALSE(P.recording);
                 send_clock();
                 pass_time(s.duration_us);
@@ -417,7 +417,7 @@ static void test_tracker_parameter_selects_baseline(void)
     TEST_ASSERT_EQUAL_INT(MD_PARAM_OUT_OF_RANGE, md_params_set(&n->params, 0x2041u, 4.0));
     TEST_ASSERT_EQUAL_INT(MD_PARAM_OUT_OF_RANGE, md_params_set(&n->params, 0x2041u, 1.5));
     TEST_ASSERT_EQUAL_INT(MD_PARAM_OK, md_params_set(&n->params, 0x2041u, 3.0)); /* GNN */
-    TEST_ASSERT_EQUAL_INT(MHTC_TRACKER_GNN, md_process_tracker(&n->params));
+    TEST_ASSERT_EQUAL_INT(MHTC_TRACKER_GNN, md_interval_tracker(&n->params));
     run(20u);
     const md_electrode_t *el = &c->cycle.el[0];
     TEST_ASSERT_EQUAL_INT(MHTC_TRACKER_GNN, el->mhtc.cfg.tracker);
@@ -428,7 +428,7 @@ static void test_tracker_parameter_selects_baseline(void)
     const mhtc_tracker_t want[4] = {MHTC_TRACKER_MHTC, MHTC_TRACKER_MAP_NN, MHTC_TRACKER_ML_NN, MHTC_TRACKER_GNN};
     for (uint32_t v = 0u; v < 4u; ++v) {
         n->params.value[MD_P_TRACKER] = (double)v;
-        TEST_ASSERT_EQUAL_INT(want[v], md_process_tracker(&n->params));
+        TEST_ASSERT_EQUAL_INT(want[v], md_interval_tracker(&n->params));
     }
 }
 

@@ -4,8 +4,8 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/eigen_top.h"
-#include "common/linalg.h"
+#include "numeric/eigen_top.h"
+#include "numeric/linalg.h"
 #include "unity.h"
 
 #define NMAX 48

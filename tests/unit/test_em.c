@@ -7,7 +7,7 @@
 
 #include "cluster/em.h"
 #include "cluster/em_evidence.h"
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "unity.h"
 
 void setUp(void) {}

@@ -4,7 +4,7 @@
 #include <string.h>
 
 #include "cluster/em_hac.h"
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "unity.h"
 
 void setUp(void) {}

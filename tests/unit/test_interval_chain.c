@@ -55,7 +55,7 @@ static md_status_t run(unsigned slot, size_t chunk, ic_out_t *out)
     for (size_t i = 0u; st == MD_OK && i < N_SAMPLES; i += chunk) {
         st = ic_push(&g_ws[slot], &g_x[i], (N_SAMPLES - i < chunk) ? (N_SAMPLES - i) : chunk);
     }
-    return (st == MD_OK) ? ic_process(&g_ws[slot], &g_mh[slot], 0.0, out) : st;
+    return (st == MD_OK) ? ic_run(&g_ws[slot], &g_mh[slot], 0.0, out) : st;
 }
 
 /* 30 samples (one CAN FD frame) or the whole interval at once: the same
@@ -161,7 +161,7 @@ static void test_stages_in_order(void)
     /* after a failure a new interval starts cleanly */
     TEST_ASSERT_EQUAL_INT(MD_OK, ic_begin(ws, &c));
     TEST_ASSERT_EQUAL_INT(MD_OK, ic_push(ws, g_x, N_SAMPLES));
-    TEST_ASSERT_EQUAL_INT(MD_OK, ic_process(ws, &g_mh[0], 0.0, &o));
+    TEST_ASSERT_EQUAL_INT(MD_OK, ic_run(ws, &g_mh[0], 0.0, &o));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ic_isolation(ws, 0u, &iso));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ic_isolation(ws, (uint8_t)(ws->res.g + 1u), &iso));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ic_begin(NULL, &c));
@@ -230,7 +230,7 @@ static void test_configurations_refused(void)
 
 /* A flat interval (detection fails) and an interval at another sample rate
  * (the tracker refuses its window length): the error is returned and
- * counted, and the tracker is as before but for its step_errors counter. */
+ * counted, and the tracker is as before but for its update_errors counter. */
 static void test_failures_leave_the_tracker(void)
 {
     init_tracker(0u);
@@ -249,10 +249,10 @@ static void test_failures_leave_the_tracker(void)
     const ic_config_t c = {30000u, GAIN_UV, N_SAMPLES, 5u}; /* windows of 35 samples, not 23 */
     TEST_ASSERT_EQUAL_INT(MD_OK, ic_begin(ws, &c));
     TEST_ASSERT_EQUAL_INT(MD_OK, ic_push(ws, g_x, N_SAMPLES));
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ic_process(ws, &g_mh[0], 0.0, &o));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ic_run(ws, &g_mh[0], 0.0, &o));
     TEST_ASSERT_EQUAL_UINT32(1u, ws->stats.track_errors);
-    TEST_ASSERT_EQUAL_UINT32(g_saved.stats.step_errors + 1u, g_mh[0].stats.step_errors);
-    g_saved.stats.step_errors++;
+    TEST_ASSERT_EQUAL_UINT32(g_saved.stats.update_errors + 1u, g_mh[0].stats.update_errors);
+    g_saved.stats.update_errors++;
     TEST_ASSERT_EQUAL_MEMORY(&g_saved, &g_mh[0], sizeof g_saved);
 }
 

@@ -5,8 +5,8 @@
 #include <stdbool.h>
 #include <string.h>
 
-#include "common/linalg.h"
-#include "common/md_rng.h"
+#include "numeric/linalg.h"
+#include "numeric/md_rng.h"
 #include "tracking/kalman.h"
 #include "unity.h"
 

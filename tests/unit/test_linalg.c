@@ -3,7 +3,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 #include "unity.h"
 
 void setUp(void) {}

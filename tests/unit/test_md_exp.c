@@ -5,7 +5,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "common/md_exp.h"
+#include "numeric/md_exp.h"
 #include "unity.h"
 
 void setUp(void) {}

@@ -7,7 +7,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "features/pca.h"
 #include "metrics/quality.h"
 #include "tracking/mhtc.h"
@@ -82,7 +82,7 @@ static md_status_t run_interval(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, pca_project_all(&g_basis, &g_wave[0][0], g_n, DW, g_y));
     TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_feature_cov(&g_basis, &g_noise[0][0], N_NOISE, DW, g_xi));
     const mhtc_input_t in = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0, 0.0};
-    const md_status_t rc = mhtc_step(&g_st, &in, &g_ws, &g_out);
+    const md_status_t rc = mhtc_update(&g_st, &in, &g_ws, &g_out);
     g_n = 0u;
     return rc;
 }
@@ -519,12 +519,12 @@ static void test_empty_interval_and_bad_input(void)
     /* bad input is rejected and counted, state untouched */
     const uint32_t steps = g_st.stats.steps;
     mhtc_input_t in = {g_y, 10u, &g_wave[0][0], DW, &g_basis, g_xi, 0.0, NULL, 0.0, 0.0};
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_step(&g_st, &in, &g_ws, &g_out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_update(&g_st, &in, &g_ws, &g_out));
     in.duration_s = 10.0;
     g_y[0] = NAN;
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_step(&g_st, &in, &g_ws, &g_out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_update(&g_st, &in, &g_ws, &g_out));
     TEST_ASSERT_EQUAL_UINT32(steps, g_st.stats.steps);
-    TEST_ASSERT_EQUAL_UINT32(2u, g_st.stats.step_errors);
+    TEST_ASSERT_EQUAL_UINT32(2u, g_st.stats.update_errors);
     mhtc_config_t bad;
     mhtc_config_default(&bad, MHTC_TRACKER_MHTC);
     bad.L = MHTC_L_MAX + 1u;
@@ -588,8 +588,8 @@ static void test_int16_input_equals_double_input(void)
         TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_feature_cov(&g_basis, &g_noise[0][0], N_NOISE, DW, g_xi));
         const mhtc_input_t in_d = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0, 0.0};
         const mhtc_input_t in_i = {g_y, g_n, NULL, DW, &g_basis, g_xi, 10.0, &g_wave_i16[0][0], gain, 0.0};
-        TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_step(&g_st, &in_d, &g_ws, &g_out));
-        TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_step(&g_st_i16, &in_i, &g_ws, &g_out_i16));
+        TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_update(&g_st, &in_d, &g_ws, &g_out));
+        TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_update(&g_st_i16, &in_i, &g_ws, &g_out_i16));
         TEST_ASSERT_EQUAL_UINT(g_out.n_tracks, g_out_i16.n_tracks);
         TEST_ASSERT_EQUAL_MEMORY(g_out.labels, g_out_i16.labels, g_n);
         for (size_t t = 0u; t < g_out.n_tracks; ++t) {
@@ -602,7 +602,7 @@ static void test_int16_input_equals_double_input(void)
     TEST_ASSERT_GREATER_OR_EQUAL_UINT(2u, g_out.n_tracks);
     /* An int16 input without a valid gain is refused. */
     const mhtc_input_t bad = {g_y, g_n, NULL, DW, &g_basis, g_xi, 10.0, &g_wave_i16[0][0], 0.0, 0.0};
-    TEST_ASSERT_TRUE(mhtc_step(&g_st_i16, &bad, &g_ws, &g_out_i16) < 0);
+    TEST_ASSERT_TRUE(mhtc_update(&g_st_i16, &bad, &g_ws, &g_out_i16) < 0);
     g_n = 0u;
 }
 

@@ -5,7 +5,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "tracking/mhtc_prob.h"
 #include "tracking/murty.h"
 #include "unity.h"

@@ -3,7 +3,7 @@
  * at every size the tracker uses (up to LAP_MAX_ROWS × LAP_MAX_COLS). */
 #include <math.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "tracking/murty.h"
 #include "unity.h"
 

@@ -417,7 +417,7 @@ static void test_estop_latches_until_clear_even_through_reset(void)
     TEST_ASSERT_EQUAL_INT(MD_NODE_STATE_PREOP, g_node.state);
     TEST_ASSERT_EQUAL_UINT32(1u, g_node.counters.nmt_refused);
     TEST_ASSERT_EQUAL_INT(MD_E_STATE, md_node_step(&g_node, 0u, MD_ACT_DIR_ADVANCE, 1u, 1u));
-    TEST_ASSERT_EQUAL_UINT8(MD_PARAM_REFUSED, param(MD_PARAM_OP_SET, MD_P_STEP_MAX_UM, 0u, 40.0f).status);
+    TEST_ASSERT_EQUAL_UINT8(MD_PARAM_REFUSED, param(MD_PARAM_OP_SET, MD_P_MOVE_MAX_UM, 0u, 40.0f).status);
     TEST_ASSERT_EQUAL_UINT8(MD_PARAM_OK, param(MD_PARAM_OP_SET, MD_P_HEARTBEAT_TIMEOUT_MS, 0u, 800.0f).status);
     /* a second ESTOP halts again but does not repeat the EMCY */
     from = g_n_sent;
@@ -673,7 +673,7 @@ static void test_own_ids_from_others_are_conflicts(void)
     expect_rejected(&f);
     const md_frame_t hb = frame_of(MD_CAN_HEARTBEAT_CTRL_FRAME_ID, b, 8);
     expect_rejected(&hb);
-    const md_frame_t step = frame_of(MD_CAN_SIM_STEP_FRAME_ID, b, 8);
+    const md_frame_t step = frame_of(MD_CAN_SIM_ADVANCE_FRAME_ID, b, 8);
     expect_rejected(&step);
     TEST_ASSERT_EQUAL_UINT32(3u, g_node.counters.rx_id_conflict);
 }

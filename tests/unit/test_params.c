@@ -80,11 +80,11 @@ static void test_set_out_of_range_changes_nothing(void)
 
 static void test_nan_and_inf_are_rejected(void)
 {
-    const uint16_t idx = index_of(MD_P_STEP_MAX_UM);
+    const uint16_t idx = index_of(MD_P_MOVE_MAX_UM);
     TEST_ASSERT_EQUAL_INT(MD_PARAM_OUT_OF_RANGE, md_params_set(&P, idx, (double)NAN));
     TEST_ASSERT_EQUAL_INT(MD_PARAM_OUT_OF_RANGE, md_params_set(&P, idx, (double)INFINITY));
     TEST_ASSERT_EQUAL_INT(MD_PARAM_OUT_OF_RANGE, md_params_set(&P, idx, -(double)INFINITY));
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, md_params_def((size_t)MD_P_STEP_MAX_UM)->def, md_params_get(&P, MD_P_STEP_MAX_UM));
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, md_params_def((size_t)MD_P_MOVE_MAX_UM)->def, md_params_get(&P, MD_P_MOVE_MAX_UM));
 }
 
 static void test_read_only_and_unknown(void)

@@ -2,7 +2,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "features/pca.h"
 #include "unity.h"
 

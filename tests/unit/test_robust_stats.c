@@ -1,6 +1,6 @@
 /* Unit: robust_stats — histogram order statistics equal sorting. */
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "signal/robust_stats.h"
 #include "unity.h"
 

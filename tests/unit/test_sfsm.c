@@ -6,7 +6,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "control/sfsm.h"
 #include "unity.h"
 
@@ -42,7 +42,7 @@ static sfsm_input_t base(void)
     in.depth_max_um = 5000.0;
     in.suggestion.ready = true;
     in.suggestion.m_star = 3u;
-    in.suggestion.step_um = 12.0;
+    in.suggestion.move_um = 12.0;
     in.suggestion.newton_um = 12.0;
     return in;
 }
@@ -50,22 +50,22 @@ static sfsm_input_t base(void)
 static void converged(sfsm_input_t *in)
 {
     in->suggestion.converged = true;
-    in->suggestion.step_um = 0.0;
+    in->suggestion.move_um = 0.0;
     in->suggestion.newton_um = 1.0;
 }
 
 /* One cycle with the invariants every cycle must keep. */
 static md_status_t cycle(const sfsm_input_t *in)
 {
-    const md_status_t st = sfsm_step(&sm, in, &out);
-    TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(cfg.step_max_um, fabs(out.step_um));
+    const md_status_t st = sfsm_decide(&sm, in, &out);
+    TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(cfg.move_max_um, fabs(out.move_um));
     if (holds_still(out.state)) {
-        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
     }
     if (isfinite(in->depth_um) && (in->depth_min_um < in->depth_max_um) && (in->depth_um >= in->depth_min_um) &&
         (in->depth_um <= in->depth_max_um)) {
-        TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(in->depth_max_um + 1e-9, in->depth_um + out.step_um);
-        TEST_ASSERT_GREATER_OR_EQUAL_DOUBLE(in->depth_min_um - 1e-9, in->depth_um + out.step_um);
+        TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(in->depth_max_um + 1e-9, in->depth_um + out.move_um);
+        TEST_ASSERT_GREATER_OR_EQUAL_DOUBLE(in->depth_min_um - 1e-9, in->depth_um + out.move_um);
     }
     if (out.row >= 0) {
         fired[out.row]++;
@@ -156,7 +156,7 @@ static void test_config_defaults_and_checks(void)
     bad.gamma2 = bad.gamma3;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
     bad = cfg;
-    bad.step_search_um = cfg.step_max_um + 1.0;
+    bad.move_search_um = cfg.move_max_um + 1.0;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
     bad = cfg;
     bad.wait_r = 0u;
@@ -182,8 +182,8 @@ static void test_config_defaults_and_checks(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_init(&sm, &bad));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_init(NULL, &cfg));
     sfsm_input_t in = base();
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_step(&sm, NULL, &out));
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_step(&sm, &in, NULL));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_decide(&sm, NULL, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_decide(&sm, &in, NULL));
 }
 
 /* Noise floor (ours): threshold crossings of noise and distant multi-unit
@@ -201,7 +201,7 @@ static void test_noise_floor_never_isolates(void)
         TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&in));
         TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
         TEST_ASSERT_EQUAL_INT(-1, out.row);
-        TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.step_search_um, out.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.move_search_um, out.move_um);
         TEST_ASSERT_EQUAL_INT(SFSM_R_SEARCH, out.reason);
     }
     TEST_ASSERT_FALSE(sm.has_ref);
@@ -228,7 +228,7 @@ static void test_noise_floor_counts_as_lost(void)
     TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.step_search_um, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.move_search_um, out.move_um);
 }
 
 static void test_spike_search_steps_then_finds_spikes(void)
@@ -239,7 +239,7 @@ static void test_spike_search_steps_then_finds_spikes(void)
     in.spikes_seen = false;
     run(&in, 4u);
     TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.move_um);
     TEST_ASSERT_EQUAL_INT(SFSM_R_SEARCH, out.reason);
     in.spikes_seen = true; /* spikes but no dominant track: keep searching */
     run(&in, 1u);
@@ -247,7 +247,7 @@ static void test_spike_search_steps_then_finds_spikes(void)
     in = base(); /* no WAIT: moving on by Δsearch while waiting would overshoot */
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 10.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 10.0, out.move_um);
     TEST_ASSERT_EQUAL_INT(SFSM_R_SAMPLE, out.reason);
 }
 
@@ -266,10 +266,10 @@ static void test_gradient_search_waits_r_cycles(void)
     run(&poor, 1u);
     run(&viable, cfg.wait_r - 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 10.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 10.0, out.move_um);
     run(&viable, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_ISOLATE_NEURON, out.state);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 12.0, out.step_um); /* the optimiser's step at once */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 12.0, out.move_um); /* the optimiser's step at once */
     TEST_ASSERT_EQUAL_INT(SFSM_R_NEWTON, out.reason);
 }
 
@@ -278,29 +278,29 @@ static void test_isolate_follows_the_optimiser(void)
     to_isolate();
     sfsm_input_t in = base();
     in.suggestion.m_star = 2u;
-    in.suggestion.step_um = -30.0;
+    in.suggestion.move_um = -30.0;
     run(&in, 1u);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, -30.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -30.0, out.move_um);
     TEST_ASSERT_EQUAL_INT(SFSM_R_LINE, out.reason);
     in.suggestion.m_star = 1u;
-    in.suggestion.step_um = 10.0;
+    in.suggestion.move_um = 10.0;
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_R_FLAT, out.reason);
     in.suggestion.m_star = 3u;
-    in.suggestion.step_um = 80.0; /* a misbehaving optimiser is still capped */
+    in.suggestion.move_um = 80.0; /* a misbehaving optimiser is still capped */
     run(&in, 1u);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.step_max_um, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.move_max_um, out.move_um);
     TEST_ASSERT_TRUE(out.clamped);
     converged(&in); /* converged but only Ω1: hold, no isolation */
     run(&in, 2u * cfg.wait_r);
     TEST_ASSERT_EQUAL_INT(SFSM_ISOLATE_NEURON, out.state);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
     TEST_ASSERT_EQUAL_INT(SFSM_R_CONVERGED_HOLD, out.reason);
     in.iqm = 1.0; /* Ω0 for R-1 cycles: hold, do not follow the gradient */
     in.suggestion = base().suggestion;
     run(&in, cfg.wait_r - 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_R_LOW_IQM_HOLD, out.reason);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
 }
 
 static void test_isolate_declares_after_r_converged_cycles(void)
@@ -320,7 +320,7 @@ static void test_isolate_declares_after_r_converged_cycles(void)
     in.snr = 12.0;
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
     TEST_ASSERT_TRUE(sm.has_ref);
     TEST_ASSERT_EQUAL_UINT32(TRACK_A, sm.ref_track);
     /* reference = mean SNR of the last R cycles of the track (9, 9, 12) */
@@ -363,7 +363,7 @@ static void test_isolated_snr_drop_rule(void)
     TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
     TEST_ASSERT_TRUE(out.reset_curve); /* entry: restart the drifted neuron's curve */
     TEST_ASSERT_EQUAL_UINT32(TRACK_A, out.reset_track);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, -5.0, out.step_um); /* retract by Δresample */
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -5.0, out.move_um); /* retract by Δresample */
     TEST_ASSERT_EQUAL_INT(SFSM_R_RETRACT, out.reason);
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 8.0, sm.ref_snr);
 }
@@ -406,17 +406,17 @@ static void test_reestimate_to_reisolate_and_back(void)
     in.suggestion.ready = false;
     run(&in, 5u);
     TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, -5.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -5.0, out.move_um);
     in = base();
     in.snr = 6.0;
     in.suggestion.m_star = 1u; /* a flat curve says nothing about the direction */
     run(&in, cfg.wait_r);
     TEST_ASSERT_EQUAL_INT(SFSM_REESTIMATE_GRADIENT, out.state);
     in.suggestion.m_star = 2u; /* a slope: follow it at once (no WAIT, ours) */
-    in.suggestion.step_um = -30.0;
+    in.suggestion.move_um = -30.0;
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_REISOLATE_NEURON, out.state);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, -30.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -30.0, out.move_um);
     in.snr = 7.99;
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_REISOLATE_NEURON, out.state);
@@ -424,7 +424,7 @@ static void test_reestimate_to_reisolate_and_back(void)
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 8.0, sm.ref_snr);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
     to_reestimate(); /* also straight from Re-Estimate Gradient */
     in = base();
     in.snr = 8.5;
@@ -477,7 +477,7 @@ static void test_other_dominant_is_adopted(void)
         mine.dominant_track = TRACK_A;
         run(&other, cfg.wait_r - 1u);
         if (here == SFSM_REESTIMATE_GRADIENT) {
-            TEST_ASSERT_DOUBLE_WITHIN(0.0, -cfg.step_resample_um, out.step_um); /* identity-free retract */
+            TEST_ASSERT_DOUBLE_WITHIN(0.0, -cfg.move_resample_um, out.move_um); /* identity-free retract */
         }
         run(&mine, 1u); /* alternating IDs never adopt */
         TEST_ASSERT_EQUAL_INT(here, out.state);
@@ -502,7 +502,7 @@ static void test_gradient_search_turns_when_snr_falls(void)
     in.snr = 20.0;
     run(&in, 1u);
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, sm.seek_best_snr);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.step_sample_um, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, cfg.move_sample_um, out.move_um);
     in.snr = 16.9; /* < 0.85 × 20 */
     for (unsigned k = 0u; k + 1u < cfg.wait_r; ++k) {
         in.dominant_track = (k % 2u == 0u) ? TRACK_B : TRACK_A; /* a new ID each time: identity-free */
@@ -517,7 +517,7 @@ static void test_gradient_search_turns_when_snr_falls(void)
     TEST_ASSERT_EQUAL_INT(-1, sm.search_dir);
     TEST_ASSERT_EQUAL_UINT8(0u, sm.reversals); /* not an edge reversal */
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 16.0, sm.seek_best_snr);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, -cfg.step_sample_um, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -cfg.move_sample_um, out.move_um);
 }
 
 /* The 85 % rule reads the dominant SNR whatever its ID: a neuron split into
@@ -538,7 +538,7 @@ static void test_snr_drop_ignores_alternating_ids(void)
     TEST_ASSERT_EQUAL_UINT32(TRACK_A, out.reset_track);
     in.dominant_track = TRACK_B;
     run(&in, 1u);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, -cfg.step_resample_um, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -cfg.move_resample_um, out.move_um);
     in.snr = 8.0;
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
@@ -581,7 +581,7 @@ static void test_omega3_isolates_from_any_state(void)
         in.dominant_track = TRACK_B;
         run(&in, 1u);
         TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
-        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
         TEST_ASSERT_EQUAL_UINT32(TRACK_B, sm.ref_track);
     }
     /* from Window Limit too */
@@ -631,14 +631,14 @@ static void test_losing_all_spikes(void)
         back.suggestion.m_star = 1u;
         run(&none, cfg.lost_cycles - 1u);
         TEST_ASSERT_EQUAL_INT(here, out.state);
-        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
         TEST_ASSERT_EQUAL_INT((here == SFSM_NEURON_ISOLATED) ? SFSM_R_ISOLATED_HOLD : SFSM_R_NO_DOMINANT_HOLD,
                               out.reason);
         run(&back, 1u);
         TEST_ASSERT_EQUAL_INT(here, out.state);
         run(&none, cfg.lost_cycles);
         TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
-        TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.move_um);
         TEST_ASSERT_FALSE(sm.has_ref);
     }
 }
@@ -656,7 +656,7 @@ static void search_blind(double from, unsigned n, double *lo, double *hi, double
     for (unsigned i = 0u; i < n; ++i) {
         TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&none));
         TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
-        none.depth_um += out.step_um;
+        none.depth_um += out.move_um;
         *lo = fmin(*lo, none.depth_um);
         *hi = fmax(*hi, none.depth_um);
     }
@@ -676,7 +676,7 @@ static void test_search_leash_looks_both_sides_of_a_lost_neuron(void)
     TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
     double lo = 0.0, hi = 0.0, at = 0.0;
     /* from 1020: 4 steps out to 1100, 10 back to 900, 15 on to 1200 */
-    search_blind(1000.0 + out.step_um, 29u, &lo, &hi, &at);
+    search_blind(1000.0 + out.move_um, 29u, &lo, &hi, &at);
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 900.0, lo);
     TEST_ASSERT_EQUAL_UINT8(SFSM_LEASH_TURNS, sm.leash_turns);
     TEST_ASSERT_EQUAL_INT(1, sm.search_dir);
@@ -719,13 +719,13 @@ static void test_window_edges(void)
     in.has_dominant = false;
     in.depth_um = 4990.0; /* Δsearch shortened to the edge */
     run(&in, 1u);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 10.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 10.0, out.move_um);
     TEST_ASSERT_TRUE(out.clamped);
     in.depth_um = 5000.0; /* at the deep edge: reverse the search */
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
     TEST_ASSERT_EQUAL_INT(-1, sm.search_dir);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, -20.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -20.0, out.move_um);
     in.depth_um = 0.0; /* the other edge too: stop and wait for the operator */
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_WINDOW_LIMIT, out.state);
@@ -736,7 +736,7 @@ static void test_window_edges(void)
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
     TEST_ASSERT_EQUAL_INT(1, sm.search_dir);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.move_um);
     /* Gradient Search at the edge: back to Spike Search, reversed */
     to_gradient_search();
     in = base();
@@ -772,7 +772,7 @@ static void test_window_edges(void)
     in.depth_min_um = 0.0;
     in.depth_max_um = 5000.0;
     run(&in, 1u);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, -20.0, out.step_um); /* reversed, moving back in */
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, -20.0, out.move_um); /* reversed, moving back in */
 }
 
 /* E-stop or fault → HALTED from every state; nothing moves until resume. */
@@ -786,7 +786,7 @@ static void test_halt_and_resume(void)
         in.fault = !in.estop;
         run(&in, 1u);
         TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
-        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
         TEST_ASSERT_EQUAL_INT(SFSM_R_HALTED, out.reason);
     }
     /* resume is refused while the cause persists */
@@ -803,7 +803,7 @@ static void test_halt_and_resume(void)
     in.resume = true;
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state); /* resumed: one row per cycle */
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.move_um);
     in.resume = false;
     run(&in, 1u);
     TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state); /* then Ω3 */
@@ -828,10 +828,10 @@ static void test_no_motion_while_halted(void)
         in.estop = md_rng_uniform(&rng) < 0.5;
         in.fault = md_rng_uniform(&rng) < 0.5;
         in.suggestion.converged = md_rng_uniform(&rng) < 0.3;
-        in.suggestion.step_um = 60.0 * md_rng_uniform(&rng) - 30.0;
+        in.suggestion.move_um = 60.0 * md_rng_uniform(&rng) - 30.0;
         (void)cycle(&in);
         TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
-        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
     }
 }
 
@@ -843,7 +843,7 @@ static void test_invalid_input_halts_and_is_counted(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, cycle(&in));
     TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
     TEST_ASSERT_EQUAL_INT(SFSM_R_BAD_INPUT, out.reason);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
     in = base();
     in.snr = INFINITY;
     in.resume = true;
@@ -853,7 +853,7 @@ static void test_invalid_input_halts_and_is_counted(void)
     in.resume = true;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, cycle(&in));
     in = base();
-    in.suggestion.step_um = NAN;
+    in.suggestion.move_um = NAN;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, cycle(&in));
     TEST_ASSERT_EQUAL_UINT32(4u, sm.bad_inputs);
     TEST_ASSERT_EQUAL_INT(SFSM_HALTED, out.state);
@@ -883,11 +883,11 @@ static void test_steps_bounded_under_random_inputs(void)
             in.suggestion.ready = md_rng_uniform(&rng) < 0.8;
             in.suggestion.m_star = (uint8_t)(1u + md_rng_below(&rng, 4u));
             in.suggestion.converged = md_rng_uniform(&rng) < 0.2;
-            in.suggestion.step_um = 200.0 * md_rng_uniform(&rng) - 100.0;
+            in.suggestion.move_um = 200.0 * md_rng_uniform(&rng) - 100.0;
             in.estop = md_rng_uniform(&rng) < 0.01;
             in.resume = md_rng_uniform(&rng) < 0.05;
             TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&in));
-            depth += out.step_um;
+            depth += out.move_um;
         }
     }
 }

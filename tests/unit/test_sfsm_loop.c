@@ -6,7 +6,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "control/sfsm.h"
 #include "control/snr_curve.h"
 #include "unity.h"
@@ -40,11 +40,11 @@ static sfsm_output_t interval(md_rng_t *rng, double depth, double peak)
         TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(c, &ccfg, depth, sm.search_dir, &in.suggestion));
     }
     sfsm_output_t out;
-    TEST_ASSERT_EQUAL_INT(MD_OK, sfsm_step(&sm, &in, &out));
+    TEST_ASSERT_EQUAL_INT(MD_OK, sfsm_decide(&sm, &in, &out));
     if (out.reset_curve) {
         TEST_ASSERT_EQUAL_INT(MD_OK, sc_table_reset_track(&table, out.reset_track));
     }
-    TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(scfg.step_max_um, fabs(out.step_um));
+    TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(scfg.move_max_um, fabs(out.move_um));
     return out;
 }
 
@@ -64,7 +64,7 @@ static void test_search_isolate_drift_reisolate(void)
         double peak = 300.0;
         unsigned k = 0u;
         for (; (k < 80u) && (sm.state != SFSM_NEURON_ISOLATED); ++k) {
-            depth += interval(&rng, depth, peak).step_um;
+            depth += interval(&rng, depth, peak).move_um;
         }
         if ((sm.state == SFSM_NEURON_ISOLATED) && (fabs(depth - peak) <= 20.0)) {
             isolated_runs++;
@@ -73,7 +73,7 @@ static void test_search_isolate_drift_reisolate(void)
         peak -= 40.0;
         bool left = false;
         for (k = 0u; (k < 80u) && !(left && (sm.state == SFSM_NEURON_ISOLATED)); ++k) {
-            depth += interval(&rng, depth, peak).step_um;
+            depth += interval(&rng, depth, peak).move_um;
             left = left || (sm.state == SFSM_REESTIMATE_GRADIENT);
         }
         if (left && (sm.state == SFSM_NEURON_ISOLATED) && (fabs(depth - peak) <= 20.0)) {

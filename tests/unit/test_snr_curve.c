@@ -7,7 +7,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "control/snr_curve.h"
 #include "unity.h"
 
@@ -71,7 +71,7 @@ static void test_config_defaults_and_checks(void)
     bad.m_max = (uint8_t)(SC_M_MAX + 1u);
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sc_config_check(&bad));
     bad = cfg;
-    bad.step_sample_um = cfg.step_max_um + 1.0;
+    bad.move_sample_um = cfg.move_max_um + 1.0;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sc_config_check(&bad));
     bad = cfg;
     bad.tol_um = NAN;
@@ -95,7 +95,7 @@ static void test_observe_rejects_bad_input_and_waits_for_k0(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, 10.0, 1, &s));
     TEST_ASSERT_FALSE(s.ready);
     TEST_ASSERT_EQUAL_UINT(0u, s.m_star);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, s.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, s.move_um);
     TEST_ASSERT_FALSE(curve.posterior_valid);
     feed(20.0, 5.0);
     TEST_ASSERT_TRUE(curve.posterior_valid);
@@ -224,7 +224,7 @@ static void test_history_is_bounded_and_keeps_newest(void)
 static void test_newton_step_on_exact_parabola(void)
 {
     fresh();
-    cfg.step_max_um = 100.0;
+    cfg.move_max_um = 100.0;
     for (size_t i = 0u; i <= 8u; ++i) {
         const double u = 10.0 * (double)i;
         feed(u, 10.0 - 0.002 * (u - 100.0) * (u - 100.0));
@@ -236,22 +236,22 @@ static void test_newton_step_on_exact_parabola(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.24, s.xi);
     TEST_ASSERT_DOUBLE_WITHIN(1e-8, -0.004, s.h);
     TEST_ASSERT_DOUBLE_WITHIN(1e-4, 60.0, s.newton_um);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-4, 60.0, s.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-4, 60.0, s.move_um);
     TEST_ASSERT_FALSE(s.converged);
     cfg.gain_c = 0.5;
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, 40.0, 1, &s));
-    TEST_ASSERT_DOUBLE_WITHIN(1e-4, 30.0, s.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-4, 30.0, s.move_um);
     cfg.gain_c = 1.0;
-    cfg.step_max_um = 30.0;
+    cfg.move_max_um = 30.0;
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, 40.0, 1, &s));
-    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 30.0, s.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 30.0, s.move_um);
     TEST_ASSERT_DOUBLE_WITHIN(1e-4, 60.0, s.newton_um);
     /* beyond the peak the step points back; at the peak it has converged */
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, 120.0, 1, &s));
-    TEST_ASSERT_DOUBLE_WITHIN(1e-4, -20.0, s.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-4, -20.0, s.move_um);
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, 101.0, 1, &s));
     TEST_ASSERT_TRUE(s.converged);
-    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, s.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, s.move_um);
     TEST_ASSERT_DOUBLE_WITHIN(1e-4, 9.998, s.peak_snr);
 }
 
@@ -266,7 +266,7 @@ static void test_line_steps_delta_max_along_slope(void)
         sc_suggestion_t s;
         TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, 70.0, 1, &s));
         TEST_ASSERT_EQUAL_UINT(2u, s.m_star);
-        TEST_ASSERT_DOUBLE_WITHIN(1e-12, (double)sign * cfg.step_max_um, s.step_um);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-12, (double)sign * cfg.move_max_um, s.move_um);
         TEST_ASSERT_FALSE(s.converged);
     }
 }
@@ -283,9 +283,9 @@ static void test_flat_curve_falls_back_to_delta_sample(void)
     sc_suggestion_t s;
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, 110.0, 1, &s));
     TEST_ASSERT_EQUAL_UINT(1u, s.m_star);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-12, cfg.step_sample_um, s.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, cfg.move_sample_um, s.move_um);
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, 110.0, -1, &s));
-    TEST_ASSERT_DOUBLE_WITHIN(1e-12, -cfg.step_sample_um, s.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, -cfg.move_sample_um, s.move_um);
     TEST_ASSERT_FALSE(s.converged);
 }
 
@@ -303,9 +303,9 @@ static void test_minimum_is_not_convergence(void)
     TEST_ASSERT_EQUAL_UINT(3u, s.m_star);
     TEST_ASSERT_GREATER_THAN_DOUBLE(0.0, s.h);
     TEST_ASSERT_FALSE(s.converged);
-    TEST_ASSERT_DOUBLE_WITHIN(1e-9, cfg.step_sample_um, s.step_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, cfg.move_sample_um, s.move_um);
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, 20.0, 1, &s));
-    TEST_ASSERT_LESS_THAN_DOUBLE(0.0, s.step_um);
+    TEST_ASSERT_LESS_THAN_DOUBLE(0.0, s.move_um);
 }
 
 /* Whatever the data, a step is finite and within ±Δmax. */
@@ -316,19 +316,19 @@ static void test_steps_never_exceed_delta_max(void)
     double worst = 0.0;
     for (size_t run = 0u; run < 40u; ++run) {
         fresh();
-        cfg.step_max_um = 5.0 + 40.0 * md_rng_uniform(&rng);
-        cfg.step_sample_um = cfg.step_max_um * md_rng_uniform(&rng);
-        cfg.step_sample_um = fmax(cfg.step_sample_um, 0.5);
+        cfg.move_max_um = 5.0 + 40.0 * md_rng_uniform(&rng);
+        cfg.move_sample_um = cfg.move_max_um * md_rng_uniform(&rng);
+        cfg.move_sample_um = fmax(cfg.move_sample_um, 0.5);
         double u = 100.0 * md_rng_uniform(&rng);
         for (size_t k = 0u; k < 40u; ++k) {
             const md_status_t st = sc_curve_observe(&curve, &cfg, u, 20.0 * md_rng_uniform(&rng) - 5.0);
             TEST_ASSERT_EQUAL_INT(MD_OK, st);
             sc_suggestion_t s;
             TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, u, (k % 2u) ? 1 : -1, &s));
-            TEST_ASSERT_TRUE(isfinite(s.step_um));
-            TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(cfg.step_max_um + 1e-12, fabs(s.step_um));
-            worst = fmax(worst, fabs(s.step_um) / cfg.step_max_um);
-            u += (md_rng_uniform(&rng) < 0.2) ? 0.0 : s.step_um + 3.0 * md_rng_gauss(&rng);
+            TEST_ASSERT_TRUE(isfinite(s.move_um));
+            TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(cfg.move_max_um + 1e-12, fabs(s.move_um));
+            worst = fmax(worst, fabs(s.move_um) / cfg.move_max_um);
+            u += (md_rng_uniform(&rng) < 0.2) ? 0.0 : s.move_um + 3.0 * md_rng_gauss(&rng);
         }
     }
     TEST_ASSERT_GREATER_THAN_DOUBLE(0.99, worst); /* the cap was actually reached */
@@ -403,7 +403,7 @@ static double loop_error(int gaussian, uint64_t seed, unsigned *cycles)
         sc_suggestion_t s;
         TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(&curve, &cfg, u, 1, &s));
         held = s.converged ? held + 1u : 0u;
-        u += s.ready ? s.step_um : cfg.step_sample_um;
+        u += s.ready ? s.move_um : cfg.move_sample_um;
     }
     *cycles = k;
     return (held >= 3u) ? fabs(u - peak) : 1e9;

@@ -55,8 +55,8 @@ static void test_curves_are_kept_per_track(void)
     sc_suggestion_t sb;
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(a, &cfg, 50.0, 1, &sa));
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_curve_suggest(b, &cfg, 50.0, 1, &sb));
-    TEST_ASSERT_GREATER_THAN_DOUBLE(0.0, sa.step_um);
-    TEST_ASSERT_LESS_THAN_DOUBLE(0.0, sb.step_um);
+    TEST_ASSERT_GREATER_THAN_DOUBLE(0.0, sa.move_um);
+    TEST_ASSERT_LESS_THAN_DOUBLE(0.0, sb.move_um);
     sc_curve_t *out = NULL;
     TEST_ASSERT_EQUAL_INT(MD_OK, sc_table_observe(&table, &cfg, 11u, 60.0, 8.0, &out));
     TEST_ASSERT_TRUE(out == a);

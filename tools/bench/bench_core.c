@@ -1,7 +1,7 @@
 /// @file bench_core.c
 /// One electrode cycle as separately runnable stages. See bench_core.h.
 /// The signal chain, tracker and quality stages are the controller's own
-/// unit (pipeline/interval_chain.h, which firmware/app/md_process.c runs),
+/// unit (pipeline/interval_chain.h, which firmware/app/md_interval.c runs),
 /// called stage by stage; control follows md_cycle.c (decide), so that the
 /// measured work is the controller's.
 #include "bench_core.h"
@@ -33,7 +33,7 @@ static int16_t g_scratch[BENCH_SAMPLES];
 static uint32_t g_peaks[PEAKS_CAP];
 
 static ic_workspace_t g_ws; /* the controller's md_workspace_t */
-static ic_out_t g_out;      /* what quality hands to control (md_process_out_t's fields) */
+static ic_out_t g_out;      /* what quality hands to control (md_interval_out_t's fields) */
 
 static cluster_workspace_t g_cl_ws;
 static cluster_result_t g_cl_res;
@@ -94,7 +94,7 @@ static md_status_t synth_interval(uint32_t k)
     return MD_OK;
 }
 
-/* As md_process_begin + md_process_push (REC_DATA frames) + the end of the interval. */
+/* As md_interval_begin + md_interval_push (REC_DATA frames) + the end of the interval. */
 static md_status_t stage_detect(void)
 {
     ag_config_t ag;
@@ -165,7 +165,7 @@ static md_status_t stage_control(void)
     }
     sfsm_output_t out;
     memset(&out, 0, sizeof out);
-    const md_status_t st = sfsm_step(&g_sfsm, &in, &out);
+    const md_status_t st = sfsm_decide(&g_sfsm, &in, &out);
     if (st == MD_OK && out.reset_curve) {
         (void)sc_table_reset_track(&g_curves, out.reset_track);
     }
@@ -430,7 +430,7 @@ static md_status_t rp_control(void)
     }
     sfsm_output_t out;
     memset(&out, 0, sizeof out);
-    if (sfsm_step(&g_sfsm, &in, &out) != MD_OK) {
+    if (sfsm_decide(&g_sfsm, &in, &out) != MD_OK) {
         return MD_OK; /* the controller holds: HALTED asks for nothing */
     }
     if (out.reset_curve) {
@@ -444,9 +444,9 @@ static md_status_t rp_control(void)
             unit[n++] = (ag_unit_t){g_ws.res.track[j].id, g_ws.track_snr[j]};
         }
     }
-    const ag_input_t gin = {unit, n, depth, out.step_um};
+    const ag_input_t gin = {unit, n, depth, out.move_um};
     ag_output_t gout;
-    (void)ag_step(&g_guard, &gin, &gout); /* a refusal holds the electrode: no error of the cycle */
+    (void)ag_apply(&g_guard, &gin, &gout); /* a refusal holds the electrode: no error of the cycle */
     return MD_OK;
 }
 

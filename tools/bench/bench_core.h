@@ -20,7 +20,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 
 #define BENCH_FS_HZ 30000u  ///< sample rate of the synthetic trace
 #define BENCH_SECONDS 10u   ///< interval length
@@ -36,9 +36,9 @@ typedef enum {
     BENCH_ST_DETECT = 0,  ///< ic_begin + ic_push (30-sample chunks) + ic_end (streaming detection, extraction)
     BENCH_ST_PCA,      ///< ic_features: pca_fit_i16, projections of spikes and noise, Ξ, noise RMS, robust amplitude
     BENCH_ST_CLUSTER,  ///< cluster_fit_models, G = 1..4, Laplace (not in the cycle sum)
-    BENCH_ST_MHTC,     ///< ic_track: one mhtc_step on the int16 windows, L = 8, G_max = 4, Laplace
+    BENCH_ST_MHTC,     ///< ic_track: one mhtc_update on the int16 windows, L = 8, G_max = 4, Laplace
     BENCH_ST_QUALITY,  ///< ic_score: SNR of every track + isolation distance of the dominant one
-    BENCH_ST_CONTROL,  ///< sc_table_observe + sc_curve_suggest + sfsm_step
+    BENCH_ST_CONTROL,  ///< sc_table_observe + sc_curve_suggest + sfsm_decide
     BENCH_ST_COUNT
 } bench_stage_t;
 

@@ -73,5 +73,5 @@ valgrind --tool=callgrind --collect-atstart=no --compress-strings=no --callgrind
 f=$(grep -l "stage:mhtc" "$work"/cg.*)
 echo "mhtc stage of $rev: $(sed -n 's/^summary: *\([0-9]*\).*/\1/p' "$f") Ir (host callgrind, inclusive per function)"
 callgrind_annotate --inclusive=yes --threshold=100 "$f" 2>/dev/null |
-    grep -E "em_fit_G|em_fit_from_G|evidence_G|em_evidence_finish|em_seed_from_targets|mhtc_commit|kf_update|mhtc_associate|murty_best|mhtc_predict_pool|em_outlier_tabulate|em_labels|mhtc_step \[" |
+    grep -E "em_fit_G|em_fit_from_G|evidence_G|em_evidence_finish|em_seed_from_targets|mhtc_commit|kf_update|mhtc_associate|murty_best|mhtc_predict_pool|em_outlier_tabulate|em_labels|mhtc_update \[" |
     sed -e 's/\.constprop\.[0-9]*//' -e 's/ \[.*//' -e 's/???://'

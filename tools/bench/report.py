@@ -71,9 +71,9 @@ def main() -> int:
         "detect": "detection + extraction (ic_begin, ic_push in 30-sample chunks, ic_end)",
         "pca": "ic_features: pca_fit_i16, projections of spikes and noise, Ξ, noise RMS, robust amplitude",
         "cluster": "clustering alone, G = 1..4, Laplace (inside MHTC; not added to the cycle)",
-        "mhtc": "ic_track: one mhtc_step on the int16 windows, L = 8, G_max = 4, Laplace",
+        "mhtc": "ic_track: one mhtc_update on the int16 windows, L = 8, G_max = 4, Laplace",
         "quality": "ic_score: SNR of every track, isolation distance of the dominant one",
-        "control": "sc_table_observe + sc_curve_suggest + sfsm_step",
+        "control": "sc_table_observe + sc_curve_suggest + sfsm_decide",
     }
     L = []
     w = L.append
@@ -142,7 +142,7 @@ def main() -> int:
         vals = [prof.get(n) for n in names]
         return " / ".join(f"{v:,}" if v is not None else "0" for v in vals)
 
-    w("| part of one mhtc_step | before (bb05bff) | SQUAREM + evidence (3b5717d) | now |")
+    w("| part of one mhtc_update | before (bb05bff) | SQUAREM + evidence (3b5717d) | now |")
     w("|---|---:|---:|---:|")
     w(f"| EM fits from the seeds, G = 1 | 3,887,657 | 2,861,027 | {pr('em_fit_G1')} |")
     w(f"| EM fits from the seeds, G = 2 | 5,148,074 | 5,261,761 | {pr('em_fit_G2')} |")
@@ -159,7 +159,7 @@ def main() -> int:
     w(f"| commit: Kalman updates (kf_update) and track bookkeeping | 2,679,102 | 2,678,697 | {pr('mhtc_commit')} |")
     w(f"| Murty / LAP (murty_best incl. lap_solve) | 261,773 | 262,381 | {pr('murty_best')} |")
     w("| labels, outlier table, prediction, priors | < 0.3 M | < 0.3 M | < 0.3 M |")
-    w(f"| **whole step** | **127,654,369** | **79,267,462** | **{pr('mhtc_step')}** |")
+    w(f"| **whole step** | **127,654,369** | **79,267,462** | **{pr('mhtc_update')}** |")
     w("")
     w("### Before and after the performance work")
     w("")

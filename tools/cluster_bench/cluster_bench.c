@@ -11,7 +11,7 @@
 #include <time.h>
 
 #include "cluster/cluster.h"
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 
 #define BENCH_SPIKES 300u
 #define BENCH_RUNS_DEFAULT 51u

@@ -31,7 +31,7 @@
 
 #include "cc_io.h"
 #include "cluster/cluster.h"
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 #include "control/approach_guard.h"
 #include "features/pca.h"
 #include "metrics/quality.h"

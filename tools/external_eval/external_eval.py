@@ -61,7 +61,7 @@ CI_MARGINS = {
     "mean_accuracy": ("min", 0.05),
     "min_unit_accuracy": ("min", 0.10),
     "tracks_issued": ("max", 2.0),
-    "step_errors": ("max", 0.0),
+    "update_errors": ("max", 0.0),
     "visible_units": ("min", 0.0),
 }
 
@@ -466,7 +466,7 @@ def report_md(data):
     if any("mhtc" in r["trackers"] for r in data["static"] + data["drifting"]):
         a("## MHTC counters (mhtc-replay summary.json `stats`)\n")
         keys = ["models_pruned", "models_failed", "evidence_fallbacks", "empty_intervals", "dup_pruned",
-                "target_overflow", "pool_drops", "kf_failures", "tracks_deleted", "step_errors"]
+                "target_overflow", "pool_drops", "kf_failures", "tracks_deleted", "update_errors"]
         a("| recording | " + " | ".join(keys) + " | at cap | step median (ms) |")
         a("|---|" + "---:|" * (len(keys) + 2))
         tot = {k: 0 for k in keys}
@@ -589,7 +589,7 @@ def ci_figures(args):
             fig[f"{key}/{t}/min_unit_accuracy"] = min(u["accuracy"] for u in x["units"].values())
         if t == "mhtc":
             fig[f"{key}/{t}/tracks_issued"] = x["tracks_issued"]
-            fig[f"{key}/{t}/step_errors"] = x["stats"].get("step_errors")
+            fig[f"{key}/{t}/update_errors"] = x["stats"].get("update_errors")
     return fig, r
 
 

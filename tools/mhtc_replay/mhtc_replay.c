@@ -414,11 +414,11 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
     (void)fprintf(f, "  \"step_ms_median\": %.3f,\n  \"step_ms_max\": %.3f,\n",
                   (done > 0u) ? g_step_ms[done / 2u] : 0.0, (done > 0u) ? g_step_ms[done - 1u] : 0.0);
     (void)fprintf(f,
-                  "  \"stats\": {\"steps\": %u, \"step_errors\": %u, \"models_pruned\": %u, \"models_failed\": %u, "
+                  "  \"stats\": {\"steps\": %u, \"update_errors\": %u, \"models_pruned\": %u, \"models_failed\": %u, "
                   "\"evidence_fallbacks\": %u, \"empty_intervals\": %u, \"dup_pruned\": %u, \"target_overflow\": %u, "
                   "\"pool_drops\": %u, \"kf_failures\": %u, \"tracks_deleted\": %u, \"murty_solves\": %u, "
                   "\"models_oversplit\": %u, \"tracks_merged\": %u, \"nscan_pruned\": %u},\n",
-                  s->steps, s->step_errors, s->models_pruned, s->models_failed, s->evidence_fallbacks,
+                  s->steps, s->update_errors, s->models_pruned, s->models_failed, s->evidence_fallbacks,
                   s->empty_intervals, s->dup_pruned, s->target_overflow, s->pool_drops, s->kf_failures,
                   s->tracks_deleted, s->murty_solves, s->models_oversplit, s->tracks_merged, s->nscan_pruned);
     (void)fprintf(f, "  \"track_ids_issued\": %u,\n  \"tracks\": [", g_st.next_id - 1u);

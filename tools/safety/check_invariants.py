@@ -150,9 +150,9 @@ class Checker:
         retract = int(m["Direction"]) == 1
         step_um = self.a.step_len_um * (self.a.retract_ratio if retract else 1.0)
         self.net_um[e] += (-1.0 if retract else 1.0) * int(m["StepCount"]) * step_um
-        if abs(self.net_um[e]) > self.a.step_max_um + self.a.tol_um:
+        if abs(self.net_um[e]) > self.a.move_max_um + self.a.tol_um:
             self.violate("step_cmd", t, f"electrode {e}: {abs(self.net_um[e]):.2f} um commanded in one move "
-                         f"(> {self.a.step_max_um} um; {self.a.step_len_um} um/step, retract x{self.a.retract_ratio})")
+                         f"(> {self.a.move_max_um} um; {self.a.step_len_um} um/step, retract x{self.a.retract_ratio})")
             self.net_um[e] = 0.0
 
     def status(self, t, m):
@@ -168,7 +168,7 @@ class Checker:
         for what, v in (("depth", d), ("target", tg)):
             if not self.in_window(v):
                 self.violate("window", t, f"electrode {e}: TLM_STATUS {what} {v:.2f} um outside the window")
-        if e in self.last_depth and abs(d - self.last_depth[e]) > self.a.step_max_um + self.a.tol_um:
+        if e in self.last_depth and abs(d - self.last_depth[e]) > self.a.move_max_um + self.a.tol_um:
             self.violate("step_meas", t, f"electrode {e}: depth moved {d - self.last_depth[e]:.2f} um in one cycle")
         self.last_depth[e] = d
         self.asked[e] = abs(tg - d) > 1e-3
@@ -259,10 +259,10 @@ def check_truth(path, a, violations):
                     e = r["electrode"]
                     if key == "depth_um":
                         break   # a neuron's depth, not the tip
-                    if e in last and abs(d - last[e]) > a.step_max_um + a.tol_um:
+                    if e in last and abs(d - last[e]) > a.move_max_um + a.tol_um:
                         violations.append({"invariant": "step_true", "t": t,
                                            "what": f"electrode {e}: true tip moved {d - last[e]:.2f} um between "
-                                                   f"recordings (> {a.step_max_um} um)"})
+                                                   f"recordings (> {a.move_max_um} um)"})
                     last[e] = d
                     break
     return n
@@ -275,7 +275,7 @@ def main(argv=None):
     p.add_argument("--dbc", default=DBC_DEFAULT)
     p.add_argument("--depth-min-um", type=float, default=0.0)
     p.add_argument("--depth-max-um", type=float, default=5000.0)
-    p.add_argument("--step-max-um", type=float, default=30.0, help="Delta_max (controller step_max_um)")
+    p.add_argument("--step-max-um", type=float, default=30.0, help="Delta_max (controller move_max_um)")
     p.add_argument("--step-len-um", type=float, default=0.040, help="advance step length the command bound assumes")
     p.add_argument("--retract-ratio", type=float, default=0.85,
                    help="retract step / advance step (host_sim/model/actuator.h default)")

@@ -3,7 +3,7 @@
 seed (e.g. the host build in-process and the Cortex-M7 image under QEMU,
 docs/pil.md): every frame the controller sent about an electrode (REC_REQ,
 ACT_CMD, TLM_CYCLE, TLM_STATUS, TLM_TRACK, TLM_WAVE, TLM_HYP, TLM_SPIKES) and
-every SIM_STEP, in order, byte for byte, apart from TLM_STATUS CycleCost and
+every SIM_ADVANCE, in order, byte for byte, apart from TLM_STATUS CycleCost and
 ProcessCost (the platform's work counter); then report.json apart from "bus"
 and each electrode's "cost".
 
@@ -33,7 +33,7 @@ DBC = os.path.join(HERE, "..", "..", "common", "protocol", "microdrive.dbc")
 
 PER_ELECTRODE = {0x210: "ACT_CMD", 0x220: "REC_REQ", 0x500: "TLM_STATUS", 0x505: "TLM_CYCLE",
                  0x510: "TLM_TRACK", 0x520: "TLM_WAVE", 0x530: "TLM_HYP", 0x540: "TLM_SPIKES"}
-SIM_STEP = 0x021
+SIM_ADVANCE = 0x021
 EMCY_CTRL = 0x081
 TLM_STATUS = 0x500
 TLM_CYCLE = 0x505
@@ -44,7 +44,7 @@ COST_BYTES = slice(32, 40)
 
 
 def read_frames(path):
-    """Per electrode: [cycle] -> [(id, data)] in log order; SIM_STEPs; EMCY 0x8130 count."""
+    """Per electrode: [cycle] -> [(id, data)] in log order; SIM_ADVANCEs; EMCY 0x8130 count."""
     per_el = defaultdict(lambda: [[]])       # e -> list of cycles, each a frame list (last one open)
     cycle_info = defaultdict(list)           # e -> [(IntervalId, StartTime_us)] per closed cycle
     steps, lost = [], 0
@@ -62,7 +62,7 @@ def read_frames(path):
                 raw = bytes.fromhex(data)
             except ValueError:
                 continue
-            if fid == SIM_STEP:
+            if fid == SIM_ADVANCE:
                 steps.append(raw)
             elif fid == EMCY_CTRL and len(raw) >= 2 and int.from_bytes(raw[0:2], "little") == 0x8130:
                 lost += 1
@@ -223,7 +223,7 @@ def main(argv=None):
                   f"interval {diff['interval_id']} starting at {diff['start_time_s']} s: {diff['frame']} "
                   f"{diff.get('fields', '')}")
         if step_diff is not None:
-            print(f"compare_sessions: SIM_STEP #{step_diff} differs")
+            print(f"compare_sessions: SIM_ADVANCE #{step_diff} differs")
         print(f"compare_sessions: {n_diff} cycles differ; by frame.field (cycles): {fields}")
     if rep_same is not None:
         print(f"compare_sessions: report.json {'identical' if rep_same else 'DIFFERENT'} apart from bus and cost")

@@ -10,7 +10,7 @@
 #include <string.h>
 #include <time.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "features/pca.h"
 #include "metrics/quality.h"
 #include "tracking/mhtc.h"
@@ -116,7 +116,7 @@ int main(int argc, char **argv)
         b_interval(&rng, k);
         const mhtc_input_t in = {g_y, B_N, &g_wave[0][0], B_DW, &g_basis, g_xi, 10.0, NULL, 0.0, 0.0};
         const double t0 = b_now_ms();
-        const md_status_t st = mhtc_step(&g_st, &in, &g_ws, &g_out);
+        const md_status_t st = mhtc_update(&g_st, &in, &g_ws, &g_out);
         const double dt = b_now_ms() - t0;
         if (st != MD_OK) {
             (void)fprintf(stderr, "mhtc-bench: step %zu failed: %s\n", k, md_status_name(st));

@@ -6,7 +6,7 @@
 #include <string.h>
 
 #include "cluster/em_modes.h"
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 void cluster_config_default(cluster_config_t *cfg, cluster_method_t method)
 {

@@ -5,8 +5,8 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/linalg.h"
-#include "common/md_exp.h"
+#include "numeric/linalg.h"
+#include "numeric/md_exp.h"
 
 #define EM_PI0_INIT 0.05     /* initial outlier weight of a seed */
 #define EM_LOG_TINY (-700.0) /* log of a weight that is numerically zero */

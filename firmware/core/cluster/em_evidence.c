@@ -15,7 +15,7 @@
 #include <string.h>
 
 #include "cluster/em_evidence_d2.h"
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 #define EM_LOG_2PI 1.8378770664093454836
 #define EM_LOG_TINY (-700.0)

@@ -9,7 +9,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/md_exp.h"
+#include "numeric/md_exp.h"
 
 #define D2_SLOTS 6u
 #define D2_UPPER 21u /* entries of a 6 × 6 upper triangle */

@@ -5,7 +5,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 #define EM_HAC_NONE 0xFFFFu
 

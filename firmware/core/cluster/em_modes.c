@@ -5,7 +5,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 /* One component's inverse covariance and the constant of its log density. */
 typedef struct {

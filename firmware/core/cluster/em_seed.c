@@ -5,7 +5,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 #define EM_SEED_JACOBI_SWEEPS 30u
 

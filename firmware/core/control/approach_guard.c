@@ -16,7 +16,7 @@ void ag_config_default(ag_config_t *cfg)
     cfg->amp_floor = 12.0;
     cfg->amp_slow = 15.0;
     cfg->amp_stop = 80.0;
-    cfg->step_near_um = 10.0;
+    cfg->move_near_um = 10.0;
     cfg->climb_frac = 0.15;
     cfg->climb_free_frac = 0.15;
     cfg->retract_um = 10.0;
@@ -32,7 +32,7 @@ static bool positive(double v)
 md_status_t ag_config_check(const ag_config_t *cfg)
 {
     if (cfg == NULL || !positive(cfg->growth_stop) || !positive(cfg->baseline_min_um) || !positive(cfg->amp_floor) ||
-        !positive(cfg->amp_slow) || !positive(cfg->amp_stop) || !positive(cfg->step_near_um) ||
+        !positive(cfg->amp_slow) || !positive(cfg->amp_stop) || !positive(cfg->move_near_um) ||
         !positive(cfg->climb_frac) || !(cfg->climb_free_frac >= cfg->climb_frac) || !positive(cfg->retract_um) ||
         !positive(cfg->still_um) || cfg->amp_floor > cfg->amp_slow || !(cfg->amp_slow < cfg->amp_stop) ||
         cfg->top_k < 1u || cfg->top_k > AG_TOP_K_MAX) {
@@ -313,8 +313,8 @@ static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double request
         *action = AG_RETRACT;
         return fmin(step, -c->retract_um);
     }
-    if (step > c->step_near_um && largest_amp(now) >= c->amp_slow) {
-        step = c->step_near_um;
+    if (step > c->move_near_um && largest_amp(now) >= c->amp_slow) {
+        step = c->move_near_um;
         *action = AG_SLOWED;
     }
     const double room = ceiling_room_um(s, now);
@@ -327,7 +327,7 @@ static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double request
 
 static bool input_valid(const ag_input_t *in)
 {
-    if (!isfinite(in->depth_um) || !isfinite(in->step_um) || in->n_units > AG_UNITS_MAX ||
+    if (!isfinite(in->depth_um) || !isfinite(in->move_um) || in->n_units > AG_UNITS_MAX ||
         (in->unit == NULL && in->n_units > 0u)) {
         return false;
     }
@@ -352,7 +352,7 @@ static void snapshot(const ag_input_t *in, ag_snapshot_t *now)
     }
 }
 
-md_status_t ag_step(ag_state_t *s, const ag_input_t *in, ag_output_t *out)
+md_status_t ag_apply(ag_state_t *s, const ag_input_t *in, ag_output_t *out)
 {
     if (s == NULL || in == NULL || out == NULL) {
         return MD_E_ARG;
@@ -373,7 +373,7 @@ md_status_t ag_step(ag_state_t *s, const ag_input_t *in, ag_output_t *out)
     if (moved >= s->cfg.still_um) {
         mark_steep(s, &now, out); /* judged on arrival after an advance only */
     }
-    out->step_um = limit_step(s, &now, in->step_um, still, &out->action);
+    out->move_um = limit_step(s, &now, in->move_um, still, &out->action);
     push_history(s, &now);
     s->last_growth = out->growth;
     s->limited += (out->action != AG_PASS) ? 1u : 0u;

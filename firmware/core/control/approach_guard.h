@@ -42,7 +42,7 @@
 ///     and the electrode follows a unit that moves away. A ceiling whose
 ///     unit was not seen for AG_HISTORY intervals lapses (it left, or an
 ///     artefact burst ended), so a transient never freezes the search;
-///  5. advances are at most step_near_um once any unit reaches amp_slow;
+///  5. advances are at most move_near_um once any unit reaches amp_slow;
 ///     retractions are never shortened.
 /// Invalid input (non-finite) holds the electrode and is counted.
 ///
@@ -82,7 +82,7 @@ typedef struct {
 /// What the guard did to the SFSM's step.
 typedef enum {
     AG_PASS = 0,  ///< step unchanged
-    AG_SLOWED,    ///< advance shortened to step_near_um (loud unit ahead)
+    AG_SLOWED,    ///< advance shortened to move_near_um (loud unit ahead)
     AG_BLOCKED,   ///< advance shortened or cancelled by a ceiling
     AG_RETRACT,   ///< retraction ordered: the unit climbed while standing still
     AG_BAD_INPUT  ///< non-finite input: hold
@@ -92,9 +92,9 @@ typedef struct {
     double growth_stop;      ///< 1/µm: ln-amplitude growth per µm of advance that marks a unit steep
     double baseline_min_um;  ///< shortest travel over which growth is measured
     double amp_floor;        ///< below this robust amplitude (noise RMS units) growth is not judged
-    double amp_slow;         ///< from this amplitude advances are at most step_near_um
+    double amp_slow;         ///< from this amplitude advances are at most move_near_um
     double amp_stop;         ///< a ceiling for every unit
-    double step_near_um;     ///< longest advance at or above amp_slow
+    double move_near_um;     ///< longest advance at or above amp_slow
     double climb_frac;       ///< rise over a unit's ceiling that retracts (rule 3)
     double climb_free_frac;  ///< rise over its lowest level at a standstill that retracts a unit without a ceiling
     double retract_um;       ///< retraction step
@@ -127,11 +127,11 @@ typedef struct {
     const ag_unit_t *unit;  ///< the interval's units (ids distinct; amp >= 0, 0: not seen)
     size_t n_units;         ///< 0..AG_UNITS_MAX
     double depth_um;        ///< depth at which the interval was recorded
-    double step_um;         ///< the SFSM's step (signed, + advances)
+    double move_um;         ///< the SFSM's step (signed, + advances)
 } ag_input_t;
 
 typedef struct {
-    double step_um;  ///< the step to execute
+    double move_um;  ///< the step to execute
     ag_action_t action;
     double growth;         ///< largest unit growth of this interval (0 if none measured)
     uint32_t growth_unit;  ///< its unit id
@@ -158,11 +158,11 @@ md_status_t ag_init(ag_state_t *s, const ag_config_t *cfg);
 md_status_t ag_robust_amplitude_i16(const int16_t *wave, size_t n, size_t stride, size_t d_w, double gain,
                                     double noise_rms_uv, uint8_t k, double *amp);
 
-/// One interval: updates the history and the ceilings, limits in->step_um.
+/// One interval: updates the history and the ceilings, limits in->move_um.
 /// MD_E_ARG on NULL (nothing written) or invalid input — non-finite depth or
 /// step, a non-finite or negative amplitude, more than AG_UNITS_MAX units or
 /// a NULL unit array with n_units > 0 (out: step 0, AG_BAD_INPUT, counted).
 /// O(AG_HISTORY · AG_UNITS_MAX²).
-md_status_t ag_step(ag_state_t *s, const ag_input_t *in, ag_output_t *out);
+md_status_t ag_apply(ag_state_t *s, const ag_input_t *in, ag_output_t *out);
 
 #endif

@@ -167,10 +167,10 @@ void sfsm_config_default(sfsm_config_t *cfg)
     if (cfg == NULL) {
         return;
     }
-    cfg->step_search_um = 20.0;
-    cfg->step_sample_um = 10.0;
-    cfg->step_resample_um = 5.0;
-    cfg->step_max_um = 30.0;
+    cfg->move_search_um = 20.0;
+    cfg->move_sample_um = 10.0;
+    cfg->move_resample_um = 5.0;
+    cfg->move_max_um = 30.0;
     cfg->gamma1 = 2.0;
     cfg->gamma2 = 3.0;
     cfg->gamma3 = 12.0;
@@ -192,9 +192,9 @@ md_status_t sfsm_config_check(const sfsm_config_t *cfg)
     if (cfg == NULL) {
         return MD_E_ARG;
     }
-    const double cap = cfg->step_max_um;
-    const bool ok = isfinite(cap) && (cap > 0.0) && sfsm_step_ok(cfg->step_search_um, cap) &&
-                    sfsm_step_ok(cfg->step_sample_um, cap) && sfsm_step_ok(cfg->step_resample_um, cap) &&
+    const double cap = cfg->move_max_um;
+    const bool ok = isfinite(cap) && (cap > 0.0) && sfsm_step_ok(cfg->move_search_um, cap) &&
+                    sfsm_step_ok(cfg->move_sample_um, cap) && sfsm_step_ok(cfg->move_resample_um, cap) &&
                     isfinite(cfg->gamma3) && (cfg->gamma1 > 0.0) && (cfg->gamma1 < cfg->gamma2) &&
                     (cfg->gamma2 < cfg->gamma3) && (cfg->snr_drop_frac > 0.0) && (cfg->snr_drop_frac < 1.0) &&
                     isfinite(cfg->snr_min) && (cfg->snr_min >= 0.0) && (cfg->wait_r >= 1u) &&
@@ -221,7 +221,7 @@ static bool sfsm_input_valid(const sfsm_input_t *in)
     const bool window = isfinite(in->depth_um) && isfinite(in->depth_min_um) && isfinite(in->depth_max_um) &&
                         (in->depth_min_um < in->depth_max_um);
     const bool metrics = !in->has_dominant || (isfinite(in->snr) && isfinite(in->iqm));
-    const bool sugg = isfinite(s->step_um) && isfinite(s->xi) && isfinite(s->h) && isfinite(s->newton_um);
+    const bool sugg = isfinite(s->move_um) && isfinite(s->xi) && isfinite(s->h) && isfinite(s->newton_um);
     return window && metrics && sugg;
 }
 
@@ -295,14 +295,14 @@ static double sfsm_optimiser_step(const sfsm_t *sm, const sfsm_input_t *in, cons
     }
     if (!s->ready) {
         *why = SFSM_R_SAMPLE;
-        return (double)sm->search_dir * sm->cfg.step_sample_um;
+        return (double)sm->search_dir * sm->cfg.move_sample_um;
     }
     if (s->converged) {
         *why = SFSM_R_CONVERGED_HOLD;
         return 0.0;
     }
     *why = (s->m_star >= 3u) ? SFSM_R_NEWTON : ((s->m_star == 2u) ? SFSM_R_LINE : SFSM_R_FLAT);
-    return s->step_um;
+    return s->move_um;
 }
 
 /* Unclamped step of the current state (motion column of docs/sfsm.md). */
@@ -310,15 +310,15 @@ static double sfsm_policy(const sfsm_t *sm, const sfsm_input_t *in, const sfsm_f
 {
     const double dir = (double)sm->search_dir;
     switch (sm->state) {
-    case SFSM_SPIKE_SEARCH: *why = SFSM_R_SEARCH; return dir * sm->cfg.step_search_um;
+    case SFSM_SPIKE_SEARCH: *why = SFSM_R_SEARCH; return dir * sm->cfg.move_search_um;
     case SFSM_GRADIENT_SEARCH:
         *why = f->dom ? SFSM_R_SAMPLE : SFSM_R_NO_DOMINANT_HOLD;
-        return f->dom ? dir * sm->cfg.step_sample_um : 0.0;
+        return f->dom ? dir * sm->cfg.move_sample_um : 0.0;
     case SFSM_ISOLATE_NEURON:
     case SFSM_REISOLATE_NEURON: return sfsm_optimiser_step(sm, in, f, why);
     case SFSM_REESTIMATE_GRADIENT: /* retract: decompression moves neurons up (§2.2.4) */
         *why = f->dom ? SFSM_R_RETRACT : SFSM_R_NO_DOMINANT_HOLD;
-        return f->dom ? -sm->cfg.step_resample_um : 0.0;
+        return f->dom ? -sm->cfg.move_resample_um : 0.0;
     case SFSM_NEURON_ISOLATED: *why = SFSM_R_ISOLATED_HOLD; return 0.0;
     case SFSM_WINDOW_LIMIT: *why = SFSM_R_WINDOW_HOLD; return 0.0;
     case SFSM_HALTED:
@@ -341,7 +341,7 @@ static double sfsm_clamp(const sfsm_t *sm, const sfsm_input_t *in, double step)
     } else {
         v = 0.0;
     }
-    return fmin(fmax(v, -sm->cfg.step_max_um), sm->cfg.step_max_um);
+    return fmin(fmax(v, -sm->cfg.move_max_um), sm->cfg.move_max_um);
 }
 
 /* The reference SNR is what the neuron gives at the isolation depth: the
@@ -468,7 +468,7 @@ static int16_t sfsm_select(sfsm_t *sm, const sfsm_input_t *in, const sfsm_facts_
     return fired;
 }
 
-md_status_t sfsm_step(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out)
+md_status_t sfsm_decide(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out)
 {
     if ((sm == NULL) || (in == NULL) || (out == NULL)) {
         return MD_E_ARG;
@@ -509,8 +509,8 @@ md_status_t sfsm_step(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out)
         sm->transitions++;
     }
     const double step = sfsm_policy(sm, in, &f, &why);
-    out->step_um = f.valid ? sfsm_clamp(sm, in, step) : 0.0;
-    out->clamped = fabs(out->step_um - step) > 1e-9;
+    out->move_um = f.valid ? sfsm_clamp(sm, in, step) : 0.0;
+    out->clamped = fabs(out->move_um - step) > 1e-9;
     out->reason = why;
     out->state = sm->state;
     sm->cycles++;

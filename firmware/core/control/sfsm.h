@@ -22,7 +22,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "control/snr_curve.h"
 
 #define SFSM_R_MAX 8u      ///< largest WAIT length R
@@ -125,10 +125,10 @@ typedef struct {
 
 /// Tunables; sfsm_config_default() gives the documented values.
 typedef struct {
-    double step_search_um;    ///< Δsearch (thesis ~20 µm)
-    double step_sample_um;    ///< Δsample (thesis ~10 µm)
-    double step_resample_um;  ///< Δresample, retracting (thesis ~5 µm)
-    double step_max_um;       ///< Δmax: no step ever exceeds it (default 30 µm)
+    double move_search_um;    ///< Δsearch (thesis ~20 µm)
+    double move_sample_um;    ///< Δsample (thesis ~10 µm)
+    double move_resample_um;  ///< Δresample, retracting (thesis ~5 µm)
+    double move_max_um;       ///< Δmax: no step ever exceeds it (default 30 µm)
     double gamma1;            ///< γ1: IQM to follow the gradient (default 2)
     double gamma2;            ///< γ2: IQM to declare isolation at the peak (default 3)
     double gamma3;            ///< γ3: IQM to declare isolation at once (default 12)
@@ -162,7 +162,7 @@ typedef struct {
     sfsm_state_t state;  ///< state after this cycle
     sfsm_state_t from;   ///< state before it
     int16_t row;         ///< index of the row that fired, -1 if none
-    double step_um;      ///< requested step, |step_um| <= Δmax, 0 in non-moving states
+    double move_um;      ///< requested step, |move_um| <= Δmax, 0 in non-moving states
     sfsm_reason_t reason;
     bool clamped;      ///< the step was shortened to stay inside the depth window
     bool reset_curve;  ///< caller: sc_table_reset_track(reset_track) (Re-Estimate entry)
@@ -209,7 +209,7 @@ md_status_t sfsm_init(sfsm_t *sm, const sfsm_config_t *cfg);
 /// SNR/IQM with a dominant track, non-finite suggestion) counts in bad_inputs,
 /// drives the machine to HALTED (zero step) and returns MD_E_ARG. NULL
 /// arguments: MD_E_ARG, nothing changed. O(table rows).
-md_status_t sfsm_step(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out);
+md_status_t sfsm_decide(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out);
 
 /// The const transition table, in priority order; *n receives its length.
 const sfsm_row_t *sfsm_table(size_t *n);

@@ -6,7 +6,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 /* Two depths closer than this count as one for identifiability (the servo's
  * resolution is far coarser). */
@@ -27,8 +27,8 @@ void sc_config_default(sc_config_t *cfg)
     cfg->k0 = 3u;
     cfg->gain_c = 1.0;
     cfg->tol_um = 2.5;
-    cfg->step_max_um = 30.0;
-    cfg->step_sample_um = 10.0;
+    cfg->move_max_um = 30.0;
+    cfg->move_sample_um = 10.0;
     cfg->depth_scale_um = 50.0;
     cfg->coef_prior_sd = 5.0;
     cfg->noise_prior_sd = 0.5;
@@ -47,8 +47,8 @@ md_status_t sc_config_check(const sc_config_t *cfg)
         return MD_E_ARG;
     }
     const bool ok = (cfg->m_max >= 1u) && (cfg->m_max <= SC_M_MAX) && (cfg->k0 >= 2u) && (cfg->k0 <= SC_HIST_MAX) &&
-                    sc_pos_finite(cfg->gain_c) && sc_pos_finite(cfg->tol_um) && sc_pos_finite(cfg->step_max_um) &&
-                    sc_pos_finite(cfg->step_sample_um) && (cfg->step_sample_um <= cfg->step_max_um) &&
+                    sc_pos_finite(cfg->gain_c) && sc_pos_finite(cfg->tol_um) && sc_pos_finite(cfg->move_max_um) &&
+                    sc_pos_finite(cfg->move_sample_um) && (cfg->move_sample_um <= cfg->move_max_um) &&
                     sc_pos_finite(cfg->depth_scale_um) && sc_pos_finite(cfg->coef_prior_sd) &&
                     sc_pos_finite(cfg->noise_prior_sd) && sc_pos_finite(cfg->noise_prior_a0) &&
                     isfinite(cfg->model_floor) && (cfg->model_floor >= 0.0) && (cfg->model_floor < 1.0);
@@ -389,11 +389,11 @@ static void sc_step(const sc_config_t *cfg, int search_dir, sc_suggestion_t *o)
     const double dir = (search_dir < 0) ? -1.0 : 1.0;
     const bool sloped = fabs(o->xi) > 0.0;
     if ((o->m_star <= 1u) || !sloped) {
-        o->step_um = dir * cfg->step_sample_um;
+        o->move_um = dir * cfg->move_sample_um;
         return;
     }
     if ((o->m_star == 2u) || (fabs(o->h) < SC_H_MIN)) {
-        o->step_um = copysign(cfg->step_max_um, o->xi);
+        o->move_um = copysign(cfg->move_max_um, o->xi);
         return;
     }
     o->newton_um = cfg->gain_c * o->xi / fabs(o->h); /* eq. 2.1 */
@@ -401,15 +401,15 @@ static void sc_step(const sc_config_t *cfg, int search_dir, sc_suggestion_t *o)
         /* Convex: ξ/|H| measures the distance from a minimum, not to a
          * maximum; eq. 2.1's |H| still gives the uphill sign. Never declare
          * convergence here and move at least Δsample uphill. */
-        o->step_um = copysign(fmin(fmax(fabs(o->newton_um), cfg->step_sample_um), cfg->step_max_um), o->xi);
+        o->move_um = copysign(fmin(fmax(fabs(o->newton_um), cfg->move_sample_um), cfg->move_max_um), o->xi);
         return;
     }
     if (fabs(o->newton_um) < cfg->tol_um) {
         o->converged = true;
-        o->step_um = 0.0;
+        o->move_um = 0.0;
         return;
     }
-    o->step_um = sc_clamp_abs(o->newton_um, cfg->step_max_um);
+    o->move_um = sc_clamp_abs(o->newton_um, cfg->move_max_um);
 }
 
 md_status_t sc_curve_suggest(const sc_curve_t *curve, const sc_config_t *cfg, double depth_um, int search_dir,
@@ -442,7 +442,7 @@ md_status_t sc_curve_suggest(const sc_curve_t *curve, const sc_config_t *cfg, do
     out->post_m_star = curve->post[m - 1u];
     sc_derivatives(coef, m, centre, scale, depth_um, out);
     sc_step(cfg, search_dir, out);
-    if (!isfinite(out->step_um) || !isfinite(out->newton_um) || !isfinite(out->peak_snr)) {
+    if (!isfinite(out->move_um) || !isfinite(out->newton_um) || !isfinite(out->peak_snr)) {
         (void)memset(out, 0, sizeof *out);
         return MD_E_NUMERIC;
     }

@@ -45,8 +45,8 @@ typedef struct {
     uint8_t k0;             ///< observations before the first model selection (thesis: 3)
     double gain_c;          ///< C of eq. 2.1 (> 0); default 1 (plain Newton)
     double tol_um;          ///< ε: converged when C|H|^-1|ξ| < ε; default 2.5 µm
-    double step_max_um;     ///< Δmax: cap of every step; default 30 µm
-    double step_sample_um;  ///< Δsample: the m* = 1 step; default 10 µm
+    double move_max_um;     ///< Δmax: cap of every step; default 30 µm
+    double move_sample_um;  ///< Δsample: the m* = 1 step; default 10 µm
     double depth_scale_um;  ///< L: depth unit of the coefficient prior, x = (u - ū)/L; default 50 µm
     double coef_prior_sd;   ///< τ: prior sd of b_2..b_m in units of the noise sd σ; default 5
     double noise_prior_sd;  ///< σ0: scale of the inverse-gamma prior on σ² (SNR units); default 0.5
@@ -75,8 +75,8 @@ typedef struct {
     double xi;           ///< ξ: slope M'(u_k), SNR per µm (0 when m* = 1)
     double h;            ///< H: curvature M''(u_k), SNR per µm² (0 when m* <= 2)
     double newton_um;    ///< signed uncapped step of eq. 2.1 (0 unless m* >= 3)
-    double step_um;      ///< signed proposed step, |step| <= Δmax
-    bool converged;      ///< m* >= 3 and |newton_um| < ε (then step_um = 0)
+    double move_um;      ///< signed proposed step, |step| <= Δmax
+    bool converged;      ///< m* >= 3 and |newton_um| < ε (then move_um = 0)
     double peak_snr;     ///< fitted M(u_k) at the current position
 } sc_suggestion_t;
 

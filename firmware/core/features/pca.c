@@ -5,7 +5,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 _Static_assert(MD_WAVE_LEN_MAX <= LINALG_MAX_N, "the covariance must fit the eigen-solver");
 _Static_assert(MD_FEAT_DIM_MAX <= EIGEN_TOP_K_MAX, "the eigen-solver must return every basis row");

@@ -20,7 +20,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/eigen_top.h"
+#include "numeric/eigen_top.h"
 #include "md_status.h"
 #include "md_config.h"
 

@@ -5,7 +5,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 #define QM_MAX_POINTS (1u << 20) /* bound on n + m: every loop below is O(points) */
 

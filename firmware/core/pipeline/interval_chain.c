@@ -162,7 +162,7 @@ md_status_t ic_track(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um)
                                  &ws->win.wave[0][0],
                                  ws->win.gain,
                                  move_um};
-        st = mhtc_step(tracker, &in, &ws->u.mhtc, &ws->res);
+        st = mhtc_update(tracker, &in, &ws->u.mhtc, &ws->res);
     }
     return stage_done(ws, st, &ws->stats.track_errors, IC_TRACKED);
 }
@@ -246,7 +246,7 @@ md_status_t ic_score(ic_workspace_t *ws, ic_out_t *out)
     return MD_OK;
 }
 
-md_status_t ic_process(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um, ic_out_t *out)
+md_status_t ic_run(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um, ic_out_t *out)
 {
     if (ws == NULL || tracker == NULL || out == NULL) {
         return MD_E_ARG;

@@ -1,7 +1,7 @@
 /// @file interval_chain.h
 /// The processing of one recording interval of one channel, from its int16
 /// samples to the tracker's answer: the controller's chain (thesis §2.2.2 and
-/// ch. 4), the one that firmware/app/md_process.c and the offline tools
+/// ch. 4), the one that firmware/app/md_interval.c and the offline tools
 /// (mhtc-replay, md-bench) run, so an offline figure is the firmware's.
 ///
 /// Stages of an interval, in this order:
@@ -17,7 +17,7 @@
 ///     covariance Ξ of the outlier component (Remark 3.2), the noise RMS, and
 ///     the robust amplitude of every window (approach_guard.h; outliers
 ///     included, so the guard does not depend on the tracker);
-///  4. ic_track: one tracker step (mhtc_step: MHTC or a baseline) with B^k
+///  4. ic_track: one tracker step (mhtc_update: MHTC or a baseline) with B^k
 ///     and Ξ on the int16 windows, the interval's duration being the samples
 ///     pushed over the sample rate, and the electrode's travel since the
 ///     previous tracked interval (its process noise grows with it, §4.6);
@@ -25,7 +25,7 @@
 ///     over noise RMS), the dominant track (the highest SNR, §2.2.2.4) and its
 ///     isolation distance ID_g under its fitted Σ_g = λ C_g, noise snippets
 ///     counting as non-members.
-/// ic_process runs 2-5. A stage before the one it needs returns MD_E_STATE;
+/// ic_run runs 2-5. A stage before the one it needs returns MD_E_STATE;
 /// stages 3-5 may be run again on the same interval (their inputs stay:
 /// a benchmark repeats them; a second ic_track steps the tracker again); a
 /// new ic_begin may start at any time.
@@ -42,14 +42,14 @@
 /// Errors: every function returns its status, and every failure is also
 /// counted in ic_workspace_t.stats (zero in a zeroed workspace: static
 /// storage, or memset). A failure of ic_end, ic_features or ic_track leaves
-/// the tracker unchanged (mhtc_step guarantees it for its own errors), so the
+/// the tracker unchanged (mhtc_update guarantees it for its own errors), so the
 /// caller may skip the interval.
 ///
 /// Use:
 ///     static ic_workspace_t ws;              // zeroed
 ///     ic_begin(&ws, &cfg);                   // per interval
 ///     ic_push(&ws, x, n); ...                // as the samples arrive
-///     ic_process(&ws, &tracker, move_um, &out); // or ic_end/ic_features/ic_track/ic_score
+///     ic_run(&ws, &tracker, move_um, &out); // or ic_end/ic_features/ic_track/ic_score
 ///     read out, ws.win (spike times), ws.res (labels, tracks), ws.track_snr
 #ifndef INTERVAL_CHAIN_H
 #define INTERVAL_CHAIN_H
@@ -157,7 +157,7 @@ md_status_t ic_features(ic_workspace_t *ws);
 /// One step of `tracker` with this interval (stage 4): ws->res. `move_um`:
 /// electrode travel since the tracker's previous interval, µm (>= 0; 0 if
 /// unknown; mhtc_input_t.move_um). On an error the tracker is unchanged but
-/// for its step_errors counter. MD_E_STATE before ic_features.
+/// for its update_errors counter. MD_E_STATE before ic_features.
 /// O(tracker step, mhtc.h).
 md_status_t ic_track(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um);
 
@@ -167,7 +167,7 @@ md_status_t ic_track(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um);
 md_status_t ic_score(ic_workspace_t *ws, ic_out_t *out);
 
 /// ic_end, ic_features, ic_track, ic_score: MD_OK or the first error.
-md_status_t ic_process(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um, ic_out_t *out);
+md_status_t ic_run(ic_workspace_t *ws, mhtc_state_t *tracker, double move_um, ic_out_t *out);
 
 /// Isolation distance of cluster `cluster` (1..G) of the leading hypothesis
 /// (qm_isolation_distance with its Σ_g = λ C_g and the noise snippets as

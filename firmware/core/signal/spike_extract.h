@@ -26,7 +26,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 #include "md_status.h"
 #include "md_config.h"
 #include "signal/spike_detect.h"

@@ -4,7 +4,7 @@
 
 #include <math.h>
 
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 
 #define SYNTH_PRE_MS 0.5
 #define SYNTH_POST_MS 1.2

@@ -6,7 +6,7 @@
 #include <stdbool.h>
 #include <string.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 #define KF_DROP_NORM 1e-9 /* Gram-Schmidt: a vector this short is already in the span */
 

@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "cluster/em_modes.h"
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 #include "tracking/mhtc_internal.h"
 
 #define MHTC_NO_SLOT SIZE_MAX /* no model slot */
@@ -632,13 +632,13 @@ static md_status_t mhtc_run_mhtc(mhtc_state_t *st, const mhtc_input_t *in, mhtc_
     return (ws->n_cand > 0u) ? MD_OK : MD_E_DEGENERATE;
 }
 
-md_status_t mhtc_step(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_result_t *out)
+md_status_t mhtc_update(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_result_t *out)
 {
     if ((st == NULL) || (out == NULL)) {
         return MD_E_ARG;
     }
     if (!mhtc_input_ok(st, in, ws) || (mhtc_config_check(&st->cfg) != MD_OK)) {
-        st->stats.step_errors++;
+        st->stats.update_errors++;
         return MD_E_ARG;
     }
     memset(out, 0, sizeof *out);
@@ -650,7 +650,7 @@ md_status_t mhtc_step(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t
         rc = mhtc_commit(st, in, ws, out);
     }
     if (rc != MD_OK) {
-        st->stats.step_errors++;
+        st->stats.update_errors++;
     }
     return rc;
 }

@@ -2,7 +2,7 @@
 /// Multiple hypothesis tracking of clusters (thesis ch. 4) for one electrode,
 /// plus three single-hypothesis baselines behind the same interface.
 ///
-/// One call of mhtc_step() processes one recording interval T_k (§4.2.3):
+/// One call of mhtc_update() processes one recording interval T_k (§4.2.3):
 ///  1. predict every track of every parent hypothesis (kalman.h, eq. 4.7-4.9,
 ///     S_j of eq. 4.13 with the track's last R_j = Σ_j/n_j mapped into B^k);
 ///  2. per parent, model classes G = 1..g_max pruned by P3 > β (eq. 4.11, 4.32);
@@ -166,7 +166,7 @@ typedef struct {
 /// Counters: every failure or forced decision is counted, nothing is silent.
 typedef struct {
     uint32_t steps;               ///< intervals processed
-    uint32_t step_errors;         ///< mhtc_step calls that returned an error
+    uint32_t update_errors;       ///< mhtc_update calls that returned an error
     uint32_t models_pruned;       ///< model classes with P3 ≤ β (eq. 4.11)
     uint32_t models_failed;       ///< EM/evidence failures of surviving model classes
     uint32_t evidence_fallbacks;  ///< models whose Laplace evidence failed and used BIC/2
@@ -314,14 +314,14 @@ md_status_t mhtc_init(mhtc_state_t *st, const mhtc_config_t *cfg);
 
 /// Processes one interval (steps 1-9 above, or the configured baseline) and
 /// fills out with the leading hypothesis. On an error nothing in st changes
-/// except stats.step_errors. n = 0 or too few spikes for any model is not an
+/// except stats.update_errors. n = 0 or too few spikes for any model is not an
 /// error: every track is missed. MD_E_ARG on bad input (d, d_w mismatch with
 /// earlier intervals, NULLs, non-finite values). Worst case
 /// O(L · g_max · EM + L² g_max · Murty); ws is the shared workspace.
-md_status_t mhtc_step(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_result_t *out);
+md_status_t mhtc_update(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_result_t *out);
 
 /// Spike labels and cluster→track IDs of surviving hypothesis h (0 = leading)
-/// as of the latest successful mhtc_step with this ws (valid until the next
+/// as of the latest successful mhtc_update with this ws (valid until the next
 /// step). labels: n values (the step's n), 0 = outlier; cluster_track:
 /// MHTC_G_MAX values, MHTC_ID_FALSE for false clusters; *g: clusters of its
 /// model. Lets an offline caller relabel intervals by the final best lineage

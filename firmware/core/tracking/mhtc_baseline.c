@@ -5,7 +5,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 #include "tracking/mhtc_internal.h"
 
 /* Squared Mahalanobis distance of μ_g from target j's prediction under S_j into

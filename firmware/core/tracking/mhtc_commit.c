@@ -6,7 +6,7 @@
 #include <string.h>
 
 #include "cluster/em_modes.h"
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 #include "tracking/mhtc_internal.h"
 
 #define MHTC_SRC_NEW (-1)

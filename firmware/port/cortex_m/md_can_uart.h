@@ -23,7 +23,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_frame.h"
 
 /// UARTs the host-to-board stream is striped over (the AN500 has five).

@@ -19,7 +19,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "common/md_status.h"
+#include "md_status.h"
 #include "md_frame.h"
 #include "md_port.h"
 

@@ -1,7 +1,7 @@
 /// @file md_rng.c
 /// SplitMix64 (Steele, Lea & Flood 2014): a Weyl sequence passed through a
 /// 64-bit finaliser; passes BigCrush and needs one word of state.
-#include "common/md_rng.h"
+#include "numeric/md_rng.h"
 
 #include <math.h>
 #include <stddef.h>

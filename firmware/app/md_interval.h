@@ -1,4 +1,4 @@
-/// @file md_process.h
+/// @file md_interval.h
 /// Processing of one recording interval of one electrode: the controller's
 /// adapter of the interval chain (pipeline/interval_chain.h: streaming
 /// detection and extraction, PCA basis B^k, features, Ξ, one tracker step,
@@ -8,8 +8,8 @@
 /// parameter chooses which tracker that is. Uses only the shared
 /// md_workspace_t (= ic_workspace_t) and the electrode's tracker; on any
 /// failure the tracker is unchanged and the caller skips the cycle.
-#ifndef MD_PROCESS_H
-#define MD_PROCESS_H
+#ifndef MD_INTERVAL_H
+#define MD_INTERVAL_H
 
 #include <stdbool.h>
 #include <stddef.h>
@@ -28,26 +28,26 @@ typedef struct {
     double snr;                ///< its SNR (peak-to-peak / noise RMS)
     double iqm;                ///< its isolation distance ID_g (sqrt), 0 if undefined
     double amp;                ///< robust amplitude of all detections (approach guard), noise RMS units
-} md_process_out_t;
+} md_interval_out_t;
 
 /// Tracker selected by the `tracker` parameter (0 MHTC, 1 MAP-NN, 2 ML-NN,
 /// 3 GNN); a value outside the table's range falls back to MHTC. O(1).
-mhtc_tracker_t md_process_tracker(const md_params_t *p);
+mhtc_tracker_t md_interval_tracker(const md_params_t *p);
 
 /// Starts an interval of `num_samples` of electrode `el` (ic_begin with its
 /// FE_INFO sample rate and gain and its guard's top_k). MD_E_ARG if FE_INFO
 /// is missing or the chain rejects the configuration. O(scales · box).
-md_status_t md_process_begin(md_workspace_t *ws, const md_electrode_t *el, uint32_t num_samples);
+md_status_t md_interval_begin(md_workspace_t *ws, const md_electrode_t *el, uint32_t num_samples);
 
 /// Streams samples of the interval. Errors as ic_push.
-md_status_t md_process_push(md_workspace_t *ws, const int16_t *x, size_t n);
+md_status_t md_interval_push(md_workspace_t *ws, const int16_t *x, size_t n);
 
-/// Ends the interval and runs every stage (ic_process with the electrode's
+/// Ends the interval and runs every stage (ic_run with the electrode's
 /// tracker and its travel el->move_um); spikes_seen: the windows cut over `duration_s` reach
 /// `min_rate_hz`. MD_OK, or the first stage's error (MD_E_DEGENERATE: too few
 /// noise snippets or a flat interval; MD_E_NUMERIC / MD_E_NOCONVERGE from
 /// PCA or the tracker ...). O(tracker step).
-md_status_t md_process_interval(md_workspace_t *ws, md_electrode_t *el, double duration_s, double min_rate_hz,
-                                md_process_out_t *out);
+md_status_t md_interval_run(md_workspace_t *ws, md_electrode_t *el, double duration_s, double min_rate_hz,
+                            md_interval_out_t *out);
 
 #endif

@@ -1,6 +1,6 @@
 /// @file md_exp.c
 /// The table of md_exp (see md_exp.h).
-#include "common/md_exp.h"
+#include "numeric/md_exp.h"
 
 /* 2^(j/64), generated with 60-digit decimal arithmetic and rounded to nearest. */
 const double md_exp_table[MD_EXP_TABLE_SIZE] = {

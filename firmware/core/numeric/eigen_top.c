@@ -1,7 +1,7 @@
 /// @file eigen_top.c
 /// Leading eigenpairs by tridiagonalisation, bisection and inverse iteration
 /// (see eigen_top.h; Golub & Van Loan §8.3, §8.4.1 and LAPACK dsytrd, dstebz, dstein).
-#include "common/eigen_top.h"
+#include "numeric/eigen_top.h"
 
 #include <float.h>
 #include <math.h>

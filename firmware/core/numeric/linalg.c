@@ -4,7 +4,7 @@
 /// Every loop is bounded by n <= LINALG_MAX_N or by the caller's sweep bound
 /// (linalg_matmul: by the caller's sizes). Routines that return md_status_t
 /// report misuse; linalg_cholesky_logdet returns NaN for it.
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 
 #include <math.h>
 #include <string.h>

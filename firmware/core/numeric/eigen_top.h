@@ -25,7 +25,7 @@
 
 #include <stddef.h>
 
-#include "common/linalg.h"
+#include "numeric/linalg.h"
 #include "md_status.h"
 
 #define EIGEN_TOP_K_MAX 4u  ///< most eigenpairs one call returns

@@ -1,13 +1,13 @@
-/// @file md_process.c
+/// @file md_interval.c
 /// One interval of one electrode through the interval chain
 /// (pipeline/interval_chain.h): the electrode's FE_INFO and approach guard
 /// make the chain's configuration, its tracker takes the step with the
-/// electrode's travel since its last tracked interval. See md_process.h.
-#include "md_process.h"
+/// electrode's travel since its last tracked interval. See md_interval.h.
+#include "md_interval.h"
 
 #include <string.h>
 
-mhtc_tracker_t md_process_tracker(const md_params_t *p)
+mhtc_tracker_t md_interval_tracker(const md_params_t *p)
 {
     /* Baselines of thesis §4.5 behind the MHTC interface: the cycle, SNR and
      * isolation read the same mhtc_result_t whichever tracker runs. */
@@ -19,7 +19,7 @@ mhtc_tracker_t md_process_tracker(const md_params_t *p)
     }
 }
 
-md_status_t md_process_begin(md_workspace_t *ws, const md_electrode_t *el, uint32_t num_samples)
+md_status_t md_interval_begin(md_workspace_t *ws, const md_electrode_t *el, uint32_t num_samples)
 {
     if (ws == NULL || el == NULL || !el->fe_info) {
         return MD_E_ARG;
@@ -28,20 +28,20 @@ md_status_t md_process_begin(md_workspace_t *ws, const md_electrode_t *el, uint3
     return ic_begin(ws, &cfg);
 }
 
-md_status_t md_process_push(md_workspace_t *ws, const int16_t *x, size_t n)
+md_status_t md_interval_push(md_workspace_t *ws, const int16_t *x, size_t n)
 {
     return ic_push(ws, x, n);
 }
 
-md_status_t md_process_interval(md_workspace_t *ws, md_electrode_t *el, double duration_s, double min_rate_hz,
-                                md_process_out_t *out)
+md_status_t md_interval_run(md_workspace_t *ws, md_electrode_t *el, double duration_s, double min_rate_hz,
+                            md_interval_out_t *out)
 {
     if (ws == NULL || el == NULL || out == NULL || !(duration_s > 0.0)) {
         return MD_E_ARG;
     }
     memset(out, 0, sizeof *out);
     ic_out_t r;
-    const md_status_t st = ic_process(ws, &el->mhtc, el->move_um, &r);
+    const md_status_t st = ic_run(ws, &el->mhtc, el->move_um, &r);
     if (st != MD_OK) {
         return st;
     }
