@@ -44,7 +44,7 @@ wait_for() {
     done
 }
 
-# run NAME: one simulator session observed by one dump; frames in $tmp/NAME.frames
+# run NAME: one simulator run observed by one dump; frames in $tmp/NAME.frames
 run() {
     name=$1
     "$MDCAN" dump --bus udp --timeout-ms 1500 >"$tmp/$name.dump" 2>"$tmp/$name.dump.err" &
@@ -110,11 +110,11 @@ grep -q '^020#204E000000000000$' "$tmp/after_req" || fail "closing SIM_CLOCK(200
 grep -q '^290#0001210000003200$' "$tmp/plant.frames" || fail "ACT_STATUS moving, CmdSeq 33, 50 to go"
 grep -q '^290#0000210032000000$' "$tmp/plant.frames" || fail "ACT_STATUS idle, 50 done"
 
-# 4. a second session with the same seed and frames: the same plant frames
+# 4. a second run with the same seed and frames: the same plant frames
 run b
 grep -v '^70[2-4]#' "$tmp/b.frames" >"$tmp/plant_b.frames"
 cmp -s "$tmp/plant.frames" "$tmp/plant_b.frames" || {
     diff "$tmp/plant.frames" "$tmp/plant_b.frames" | head -20 >&2
-    fail "two sessions with the same seed differ"
+    fail "two runs with the same seed differ"
 }
-echo "test_sim_bus: OK ($(wc -l <"$tmp/plant.frames") plant frames identical in two sessions)"
+echo "test_sim_bus: OK ($(wc -l <"$tmp/plant.frames") plant frames identical in two runs)"

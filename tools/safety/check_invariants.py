@@ -2,7 +2,7 @@
 """Safety invariants of a microdrive session, checked on its frame log.
 
 usage: check_invariants.py LOG [--truth truth.jsonl] [--dbc microdrive.dbc]
-                           [--depth-min-um 0] [--depth-max-um 5000] [--step-max-um 30]
+                           [--depth-min-um 0] [--depth-max-um 5000] [--move-max-um 30]
                            [--step-len-um 0.040] [--tol-um 3] [--hb-timeout-ms 500]
                            [--auto-start] [--json OUT]
 
@@ -275,7 +275,7 @@ def main(argv=None):
     p.add_argument("--dbc", default=DBC_DEFAULT)
     p.add_argument("--depth-min-um", type=float, default=0.0)
     p.add_argument("--depth-max-um", type=float, default=5000.0)
-    p.add_argument("--step-max-um", type=float, default=30.0, help="Delta_max (controller move_max_um)")
+    p.add_argument("--move-max-um", type=float, default=30.0, help="Delta_max (controller move_max_um)")
     p.add_argument("--step-len-um", type=float, default=0.040, help="advance step length the command bound assumes")
     p.add_argument("--retract-ratio", type=float, default=0.85,
                    help="retract step / advance step (host_sim/model/actuator.h default)")
