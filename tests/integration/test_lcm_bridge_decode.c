@@ -191,18 +191,10 @@ static void feed_cycle(uint8_t e, uint16_t cycle)
     feed_spikes(e, cycle, 1, 2, 5000);
 }
 
-static void test_complete_cycle_published_at_status(void)
+/* The MD_STATUS message of the cycle test_complete_cycle_published_at_status feeds. */
+static void check_status_message(void)
 {
-    feed_clock(20000000u);
-    feed_cycle(1, 42);
-    TEST_ASSERT_EQUAL_INT(0, count(LB_CH_TRACKS)); /* nothing before TLM_STATUS */
-    feed_status(1, 42, 2, 3, 13);
-    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_STATUS));
-    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_TRACKS));
-    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_HYPOTHESES));
-    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_SPIKES));
-
-    int i = find(LB_CH_STATUS, 0);
+    const int i = find(LB_CH_STATUS, 0);
     microdrive_status_t s;
     TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_status_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &s));
     TEST_ASSERT_EQUAL_INT64(20000000, s.utime);
@@ -218,8 +210,12 @@ static void test_complete_cycle_published_at_status(void)
     TEST_ASSERT_EQUAL_INT(3, s.num_hypotheses);
     TEST_ASSERT_EQUAL_INT(13, s.num_spikes);
     TEST_ASSERT_EQUAL_INT64(5, s.flags);
+}
 
-    i = find(LB_CH_TRACKS, 0);
+/* ... its MD_TRACKS message. */
+static void check_tracks_message(void)
+{
+    const int i = find(LB_CH_TRACKS, 0);
     microdrive_tracks_t t;
     TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_tracks_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &t));
     TEST_ASSERT_EQUAL_INT(2, t.num_tracks);
@@ -236,8 +232,12 @@ static void test_complete_cycle_published_at_status(void)
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 827.0f, t.mean_wave_uv[1][27]);
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 900.0f, t.mean_wave_uv[1][28]);
     microdrive_tracks_t_decode_cleanup(&t);
+}
 
-    i = find(LB_CH_HYPOTHESES, 0);
+/* ... its MD_HYPOTHESES message. */
+static void check_hypotheses_message(void)
+{
+    const int i = find(LB_CH_HYPOTHESES, 0);
     microdrive_hypotheses_t h;
     TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_hypotheses_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &h));
     TEST_ASSERT_EQUAL_INT(3, h.num_hypotheses);
@@ -248,8 +248,12 @@ static void test_complete_cycle_published_at_status(void)
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, -0.5f, h.log_prob[0]);
     TEST_ASSERT_EQUAL_INT(3, h.model_g[2]);
     microdrive_hypotheses_t_decode_cleanup(&h);
+}
 
-    i = find(LB_CH_SPIKES, 0);
+/* ... its MD_SPIKES message. */
+static void check_spikes_message(void)
+{
+    const int i = find(LB_CH_SPIKES, 0);
     microdrive_spikes_t sp;
     TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_spikes_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &sp));
     TEST_ASSERT_EQUAL_INT(13, sp.num_spikes);
@@ -260,6 +264,22 @@ static void test_complete_cycle_published_at_status(void)
     TEST_ASSERT_EQUAL_INT(7, sp.track_id[1]);
     TEST_ASSERT_EQUAL_INT64(-1, sp.interval_start_us); /* no TLM_CYCLE in this group */
     microdrive_spikes_t_decode_cleanup(&sp);
+}
+
+static void test_complete_cycle_published_at_status(void)
+{
+    feed_clock(20000000u);
+    feed_cycle(1, 42);
+    TEST_ASSERT_EQUAL_INT(0, count(LB_CH_TRACKS)); /* nothing before TLM_STATUS */
+    feed_status(1, 42, 2, 3, 13);
+    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_STATUS));
+    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_TRACKS));
+    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_HYPOTHESES));
+    TEST_ASSERT_EQUAL_INT(1, count(LB_CH_SPIKES));
+    check_status_message();
+    check_tracks_message();
+    check_hypotheses_message();
+    check_spikes_message();
 }
 
 /// The controller's order (firmware/app/md_telemetry.c): TLM_STATUS first, TLM_SPIKES

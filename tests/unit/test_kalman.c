@@ -192,6 +192,38 @@ static void test_conservative_above_rank_bound(void)
 /* A move scales the whole waveform by an uncertain factor: Q = qI + s2 x̂x̂ᵀ,
  * exact against the dense filter below the rank bound, and the update then
  * follows a scaled measurement along x̂ much further than with Q = qI. */
+/* An orthonormal D x DW basis whose first row is x's direction, and the
+ * measurement of scale * x through it. Returns |x|. */
+static double basis_along(const double *x, double scale, double *h, double *mu)
+{
+    double nx = 0.0;
+    for (size_t i = 0u; i < DW; ++i) {
+        nx += x[i] * x[i];
+    }
+    memset(h, 0, D * DW * sizeof h[0]);
+    for (size_t i = 0u; i < DW; ++i) {
+        h[i] = x[i] / sqrt(nx);
+    }
+    h[DW + ((fabs(h[0]) < 0.5) ? 0u : 1u)] = 1.0; /* any second unit row */
+    double dot = 0.0;
+    for (size_t i = 0u; i < DW; ++i) {
+        dot += h[i] * h[DW + i];
+    }
+    double n2 = 0.0;
+    for (size_t i = 0u; i < DW; ++i) {
+        h[DW + i] -= dot * h[i];
+        n2 += h[DW + i] * h[DW + i];
+    }
+    double m1 = 0.0;
+    for (size_t i = 0u; i < DW; ++i) {
+        h[DW + i] /= sqrt(n2);
+        m1 += h[DW + i] * x[i];
+    }
+    mu[0] = scale * sqrt(nx);
+    mu[1] = scale * m1;
+    return sqrt(nx);
+}
+
 static void test_scaled_prediction(void)
 {
     md_rng_t rng;
@@ -211,40 +243,13 @@ static void test_scaled_prediction(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-4, 0.0, max_abs_diff(g_low, g_lam, DW * DW));
     TEST_ASSERT_EQUAL_MEMORY(xk, st.x, sizeof xk); /* x̂ unchanged (F = I) */
     /* a measurement of 1.3 x̂ through a basis containing x̂'s direction */
-    double h[D * DW] = {0}, mu[D], r[D * D] = {0.5, 0.0, 0.0, 0.5};
-    double nx = 0.0;
-    for (size_t i = 0u; i < DW; ++i) {
-        nx += xk[i] * xk[i];
-    }
-    for (size_t i = 0u; i < DW; ++i) {
-        h[i] = xk[i] / sqrt(nx);
-    }
-    h[DW + ((fabs(h[0]) < 0.5) ? 0u : 1u)] = 1.0; /* any second unit row */
-    double dot = 0.0;
-    for (size_t i = 0u; i < DW; ++i) {
-        dot += h[i] * h[DW + i];
-    }
-    for (size_t i = 0u; i < DW; ++i) {
-        h[DW + i] -= dot * h[i];
-    }
-    double n2 = 0.0;
-    for (size_t i = 0u; i < DW; ++i) {
-        n2 += h[DW + i] * h[DW + i];
-    }
-    for (size_t i = 0u; i < DW; ++i) {
-        h[DW + i] /= sqrt(n2);
-    }
-    mu[0] = 1.3 * sqrt(nx);
-    double m1 = 0.0;
-    for (size_t i = 0u; i < DW; ++i) {
-        m1 += h[DW + i] * xk[i];
-    }
-    mu[1] = 1.3 * m1;
-    kf_state_t iso;
+    double h[D * DW], mu[D], r[D * D] = {0.5, 0.0, 0.0, 0.5};
+    const double nx = basis_along(xk, 1.3, h, mu);
     TEST_ASSERT_EQUAL_INT(MD_OK, kf_update(&st, h, D, mu, r, &g_ws));
     dense_update(h, mu, r);
     TEST_ASSERT_DOUBLE_WITHIN(1e-4, 0.0, max_abs_diff(st.x, g_x, DW));
-    /* the same update after Q = qI only */
+    /* the same update after Q = qI only moves less along x̂ */
+    kf_state_t iso;
     init_both(&iso, &rng, 2.0);
     memcpy(iso.x, xk, sizeof xk);
     TEST_ASSERT_EQUAL_INT(MD_OK, kf_predict(&iso, q));
@@ -254,10 +259,18 @@ static void test_scaled_prediction(void)
         along += h[i] * st.x[i];
         along_iso += h[i] * iso.x[i];
     }
-    const double target = mu[0] - sqrt(nx);
-    TEST_ASSERT_GREATER_THAN_DOUBLE(0.95 * target, along - sqrt(nx));
-    TEST_ASSERT_LESS_THAN_DOUBLE(along - sqrt(nx), along_iso - sqrt(nx));
-    /* s2 = 0 is kf_predict; bad arguments are refused */
+    TEST_ASSERT_GREATER_THAN_DOUBLE(0.95 * (mu[0] - nx), along - nx);
+    TEST_ASSERT_LESS_THAN_DOUBLE(along - nx, along_iso - nx);
+}
+
+/* s2 = 0 is kf_predict; bad arguments are refused. */
+static void test_scaled_prediction_arguments(void)
+{
+    md_rng_t rng;
+    md_rng_seed(&rng, 13u);
+    kf_state_t st;
+    init_both(&st, &rng, 2.0);
+    const double q = 0.25, s2 = 0.09;
     const double a_before = st.a;
     TEST_ASSERT_EQUAL_INT(MD_OK, kf_predict_scaled(&st, q, 0.0, &g_ws));
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, a_before + q, st.a);
@@ -306,6 +319,7 @@ int main(void)
     RUN_TEST(test_exact_below_rank_bound);
     RUN_TEST(test_conservative_above_rank_bound);
     RUN_TEST(test_scaled_prediction);
+    RUN_TEST(test_scaled_prediction_arguments);
     RUN_TEST(test_predict_measure);
     RUN_TEST(test_rejects_bad_input);
     return UNITY_END();

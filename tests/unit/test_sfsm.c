@@ -545,10 +545,10 @@ static void test_snr_drop_ignores_alternating_ids(void)
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 8.0, sm.ref_snr);
 }
 
-/* Ω3 (IQM >= γ3) → Neuron Isolated at once, from every running state
- * without a reference; in Re-Estimate / Re-Isolate only for a louder other
- * track (the held neuron's own high IQM there is no new isolation: its
- * reference SNR stands until the SNR is restored or the optimiser converges). */
+/* Ω3 (IQM >= γ3) → Neuron Isolated; in Re-Estimate / Re-Isolate only for a
+ * louder other track (the held neuron's own high IQM there is no new
+ * isolation: its reference SNR stands until the SNR is restored or the
+ * optimiser converges). */
 static void test_omega3_isolates_from_any_state(void)
 {
     void (*const held[2])(void) = {to_reestimate, to_reisolate};
@@ -572,6 +572,12 @@ static void test_omega3_isolates_from_any_state(void)
         TEST_ASSERT_EQUAL_UINT32(TRACK_B, sm.ref_track);
         TEST_ASSERT_DOUBLE_WITHIN(1e-12, 8.0, sm.ref_snr); /* B's SNRs at this depth: 7, 9 */
     }
+}
+
+/* Ω3 from Spike Search, Gradient Search, Isolate Neuron and Window Limit
+ * (no reference there), and a louder other track while isolated. */
+static void test_omega3_isolates_without_a_reference(void)
+{
     void (*const reach[3])(void) = {start, to_gradient_search, to_isolate};
     for (size_t k = 0u; k < 3u; ++k) {
         reach[k]();
@@ -737,9 +743,14 @@ static void test_window_edges(void)
     TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
     TEST_ASSERT_EQUAL_INT(1, sm.search_dir);
     TEST_ASSERT_DOUBLE_WITHIN(0.0, 20.0, out.move_um);
+}
+
+/* Every other state at an edge of the window, and a depth outside it. */
+static void test_window_edges_other_states(void)
+{
     /* Gradient Search at the edge: back to Spike Search, reversed */
     to_gradient_search();
-    in = base();
+    sfsm_input_t in = base();
     in.depth_um = 5000.0;
     in.suggestion.m_star = 1u;
     run(&in, 1u);
@@ -921,10 +932,12 @@ int main(void)
     RUN_TEST(test_snr_drop_ignores_alternating_ids);
     RUN_TEST(test_gradient_search_turns_when_snr_falls);
     RUN_TEST(test_omega3_isolates_from_any_state);
+    RUN_TEST(test_omega3_isolates_without_a_reference);
     RUN_TEST(test_losing_all_spikes);
     RUN_TEST(test_search_leash_looks_both_sides_of_a_lost_neuron);
     RUN_TEST(test_search_leash_needs_an_anchor_and_a_span);
     RUN_TEST(test_window_edges);
+    RUN_TEST(test_window_edges_other_states);
     RUN_TEST(test_halt_and_resume);
     RUN_TEST(test_no_motion_while_halted);
     RUN_TEST(test_invalid_input_halts_and_is_counted);
