@@ -224,12 +224,18 @@ static double basis_along(const double *x, double scale, double *h, double *mu)
     return sqrt(nx);
 }
 
+/* The state both scaled-prediction tests start from (and the dense twin). */
+static void scaled_setup(kf_state_t *st, md_rng_t *rng)
+{
+    md_rng_seed(rng, 13u);
+    init_both(st, rng, 2.0);
+}
+
 static void test_scaled_prediction(void)
 {
     md_rng_t rng;
-    md_rng_seed(&rng, 13u);
     kf_state_t st;
-    init_both(&st, &rng, 2.0);
+    scaled_setup(&st, &rng);
     const double q = 0.25, s2 = 0.09;
     double xk[DW];
     memcpy(xk, st.x, sizeof xk);
@@ -267,9 +273,8 @@ static void test_scaled_prediction(void)
 static void test_scaled_prediction_arguments(void)
 {
     md_rng_t rng;
-    md_rng_seed(&rng, 13u);
     kf_state_t st;
-    init_both(&st, &rng, 2.0);
+    scaled_setup(&st, &rng);
     const double q = 0.25, s2 = 0.09;
     const double a_before = st.a;
     TEST_ASSERT_EQUAL_INT(MD_OK, kf_predict_scaled(&st, q, 0.0, &g_ws));
