@@ -3,6 +3,7 @@
 
     scripts/stack-budget.py [--budgets tools/analysis/budgets.txt] <image.elf> [more.elf ...]
     scripts/stack-budget.py --cycles-only FILE.ci...      (recursion check only)
+    scripts/stack-budget.py --root FUNCTION FILE.ci|DIR...  (one function's worst case)
 
 Needs the image's objects compiled with -fcallgraph-info=su (GCC writes a
 <object-stem>.ci next to every object; tests/analysis/CMakeLists.txt adds the
@@ -22,6 +23,10 @@ For each image named in the budget file:
     which is checked against the image's disassembly (prologue push/vpush/sub
     sp plus the deepest bl chain);
   * static RAM: .data + .bss of the ELF (arm-none-eabi-size), held under budget.
+With --root, no image and no budget: the worst-case stack of FUNCTION (the
+deepest call chain through the .ci files named, or every .ci below a folder
+named), with the chain; calls to functions without a .ci (libc, libm) and
+calls through function pointers count 0 bytes and are listed.
 Exit status 0 within every budget, 1 over a budget or rule broken, 2 usage error.
 """
 import argparse
@@ -117,7 +122,7 @@ class Budgets:
         self.edge = {}        # from -> [to]
         self.extern = {}      # name -> bytes
         self.exception_frame = 0
-        for n, raw in enumerate(open(path), 1):
+        for n, raw in enumerate(open(path) if path else (), 1):
             line = raw.split("#", 1)[0].split()
             if not line:
                 continue
@@ -145,8 +150,13 @@ class Budgets:
 
 
 class Analysis:
-    def __init__(self, graph, budgets, extern_measured):
+    def __init__(self, graph, budgets, extern_measured, open_calls=False):
+        """open_calls: calls without a .ci or a declared bound, and indirect calls
+        without declared targets, count 0 bytes and are listed in self.uncounted
+        (instead of being errors)."""
         self.g, self.b, self.measured = graph, budgets, extern_measured
+        self.open_calls = open_calls
+        self.uncounted = set()
         self.errors = []
         self.best = {}
         self.externals_used = {}
@@ -158,6 +168,9 @@ class Analysis:
             if callee == INDIRECT:
                 targets = self.b.indirect.get(short(title), self.b.indirect.get(title))
                 self.indirect_seen.add(short(title))
+                if targets is None and self.open_calls:
+                    self.uncounted.add(f"indirect call in {short(title)}")
+                    continue
                 if targets is None:
                     self.errors.append(f"indirect call in {short(title)} ({self.g.where.get(title, '?')}) "
                                        f"has no declared targets (add 'indirect {short(title)} <target>...')")
@@ -182,6 +195,9 @@ class Analysis:
         if name in self.b.extern:
             self.externals_used[name] = self.b.extern[name]
             return self.b.extern[name]
+        if self.open_calls:
+            self.uncounted.add(name)
+            return 0
         self.errors.append(f"call to {name}: no .ci and no declared bound (add 'extern {name} <bytes>')")
         return 0
 
@@ -389,22 +405,59 @@ def check_image(elf, budgets, verbose):
     return ok and verdict == "ok"
 
 
+def ci_files(args):
+    """The .ci files named, and every .ci below a folder named (sorted)."""
+    files = []
+    for arg in args:
+        if os.path.isdir(arg):
+            files += sorted(os.path.join(d, f) for d, _, fs in os.walk(arg) for f in fs if f.endswith(".ci"))
+        else:
+            files.append(arg)
+    return files
+
+
+def check_cycles(files):
+    g = CallGraph()
+    for f in files:
+        g.read_ci(f)
+    cyc = g.cycles()
+    for c in cyc:
+        print("RECURSION " + " -> ".join(c), file=sys.stderr)
+    print(f"stack-budget: {len(files)} .ci files, {len(g.frame)} functions, {len(cyc)} cycle(s)")
+    return 1 if cyc else 0
+
+
+def report_root(root, files):
+    """Worst-case stack of one function from .ci files alone (no image, no budget)."""
+    g = CallGraph()
+    for f in files:
+        g.read_ci(f)
+    if g.resolve(root) not in g.frame:
+        print(f"stack-budget: {root}: not defined in the {len(files)} .ci files", file=sys.stderr)
+        return 2
+    an = Analysis(g, Budgets(None), {}, open_calls=True)
+    depth, path = an.worst(root)
+    print(f"worst-case stack of {root}: {depth} B ({len(files)} call-graph files, {len(g.frame)} functions)")
+    for fn, size, _ in path:
+        print(f"  {size:6d}  {fn}")
+    print("not counted (0 B: no .ci, or a call through a pointer): " + (", ".join(sorted(an.uncounted)) or "none"))
+    for e in sorted(set(an.errors)):
+        print(f"stack-budget: {root}: {e}", file=sys.stderr)
+    return 1 if an.errors else 0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--budgets", default=DEFAULT_BUDGETS)
     ap.add_argument("--cycles-only", action="store_true", help="arguments are .ci files: fail on a cycle")
+    ap.add_argument("--root", metavar="FUNCTION", help="arguments are .ci files or folders: FUNCTION's worst case")
     ap.add_argument("--verbose", "-v", action="store_true")
     ap.add_argument("files", nargs="+")
     a = ap.parse_args()
     if a.cycles_only:
-        g = CallGraph()
-        for f in a.files:
-            g.read_ci(f)
-        cyc = g.cycles()
-        for c in cyc:
-            print("RECURSION " + " -> ".join(c), file=sys.stderr)
-        print(f"stack-budget: {len(a.files)} .ci files, {len(g.frame)} functions, {len(cyc)} cycle(s)")
-        return 1 if cyc else 0
+        return check_cycles(a.files)
+    if a.root:
+        return report_root(a.root, ci_files(a.files))
     budgets = Budgets(a.budgets)
     ok = True
     for elf in a.files:

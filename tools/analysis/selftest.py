@@ -3,8 +3,9 @@
 
 Compiles small C programs with gcc -fcallgraph-info=su and checks that
 scripts/stack-budget.py finds direct and mutual recursion (exit 1), accepts an
-acyclic program (exit 0), and that the worst path sums the frames of the
-deepest chain. A checker that cannot fail would prove nothing.
+acyclic program (exit 0), that the worst path sums the frames of the
+deepest chain, and that --root prints that sum and lists a call without a .ci.
+A checker that cannot fail would prove nothing.
 """
 import importlib.util
 import os
@@ -23,7 +24,8 @@ PROGRAMS = {
     "acyclic": ("int leaf(volatile int *p);\nint mid(void);\nint top(void);\n"
                 "int leaf(volatile int *p) { volatile int big[64]; big[0] = *p; return big[0]; }\n"
                 "int mid(void) { volatile int x = 1; return leaf(&x); }\n"
-                "int top(void) { return mid() + leaf(0); }\n", 0),
+                "int ext(int n);\n"
+                "int top(void) { return mid() + leaf(0) + ext(1); }\n", 0),
 }
 
 
@@ -57,6 +59,11 @@ def main():
         ok = depth == want and [p[0] for p in path] == ["top", "mid", "leaf"] and g.frame["leaf"][0] > g.frame["mid"][0]
         failures += not ok
         print(f"{'ok  ' if ok else 'FAIL'} worst path top->mid->leaf = {depth} B (want {want})")
+        r = subprocess.run([sys.executable, SB, "--root", "top", tmp], capture_output=True, text=True)
+        ok = (r.returncode == 0 and f"worst-case stack of top: {want} B" in r.stdout
+              and r.stdout.rstrip().endswith(": ext"))
+        failures += not ok
+        print(f"{'ok  ' if ok else 'FAIL'} --root top: exit {r.returncode}, {r.stdout.splitlines()[:1]} (want {want} B, ext)")
     return 1 if failures else 0
 
 
