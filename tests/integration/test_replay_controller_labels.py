@@ -8,8 +8,8 @@ recording with its defaults, which are the controller's tracker parameters
 (MHTC, q = 10 uV, unimodal ratio 0.8). Both run firmware/core/pipeline/
 interval_chain, so per interval the spikes (sample index of each window's
 minimum) and their track IDs must be identical: the controller's are the
-TLM_SPIKES frames of the interval's cycle (decoded by tools/session/score.py
-read_log with cantools and the DBC), the replay's the rows of
+TLM_SPIKES frames of the interval's cycle (read by microdrive.session, by
+DBC message name), the replay's the rows of
 labels_online.csv (the leading hypothesis after each interval).
 
 Spikes the controller sent unlabelled (a skipped cycle, or fewer than 2
@@ -32,10 +32,10 @@ import sys
 from collections import defaultdict
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.join(ROOT, "tools", "session"))
-import score  # noqa: E402  (tools/session/score.py: the one reader of the telemetry)
 
-TRACK_UNLABELLED = score.TRACK_UNLABELLED
+from microdrive import session  # the one reader of a session's telemetry
+
+TRACK_UNLABELLED = session.TRACK_UNLABELLED
 TLM_F_SKIPPED = 0x0001            # firmware/app/md_cycle.h MD_TLM_F_SKIPPED
 TRACKER_PARAM = {"mhtc": 0, "map-nn": 1, "ml-nn": 2, "gnn": 3}   # md_interval_tracker
 
@@ -49,9 +49,7 @@ def run(cmd):
 
 def controller_labels(session_dir, electrode):
     """cycle -> [(sample in the interval, track)] of the electrode, parts in order; cycle -> TLM_STATUS."""
-    import cantools
-    db = cantools.database.load_file(score.DBC)
-    status, _, spikes, _ = score.read_log(os.path.join(session_dir, "candump.log"), db)
+    status, _, spikes, _ = session.read_telemetry(os.path.join(session_dir, "candump.log"))
     labels = {}
     for (e, cycle), parts in spikes.items():
         if e == electrode:

@@ -14,17 +14,16 @@ import os
 import pathlib
 import subprocess
 
-import cantools
 import numpy as np
 import pytest
 
 import microdrive
+from microdrive import canlog
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 BIN = pathlib.Path(os.environ.get("MD_BUILD_DIR", ROOT / "build" / "release")) / "bin"
 CYCLES = 3
-IDS = {"FE_INFO": 0x420, "REC_REQ": 0x220, "REC_DATA": 0x400, "REC_END": 0x410, "HALL_READING": 0x300,
-       "TLM_STATUS": 0x500}
+NAMES = ("FE_INFO", "REC_REQ", "REC_DATA", "REC_END", "HALL_READING", "TLM_STATUS")
 
 
 @pytest.fixture(scope="module")
@@ -39,18 +38,10 @@ def session(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def frames(session):
-    """(frame name, decoded signals, raw bytes) of candump.log in order, for the ids in IDS."""
-    db = cantools.database.load_file(str(ROOT / "common" / "protocol" / "microdrive.dbc"))
-    names = {v: k for k, v in IDS.items()}
-    out = []
-    for line in open(session / "candump.log"):
-        cid, sep, data = line.split()[2].partition("#")
-        fid = int(cid, 16)
-        if fid not in names:
-            continue
-        raw = bytes.fromhex(data[2:] if data.startswith("#") else data)   # FD: '#' + flags nibble
-        out.append((names[fid], db.decode_message(fid, raw, decode_choices=False) if fid != 0x400 else None, raw))
-    return out
+    """(frame name, decoded signals, raw bytes) of candump.log in order, for the messages in NAMES."""
+    db = canlog.load_dbc()
+    return [(fr.name, canlog.decode(db, fr) if fr.name != "REC_DATA" else None, fr.data)
+            for fr in canlog.frames(str(session / "candump.log"), NAMES, db)]
 
 
 @pytest.fixture(scope="module")

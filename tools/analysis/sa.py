@@ -329,7 +329,6 @@ def run_gcc(units, work, jobs):
 # ---- recursion ------------------------------------------------------------------
 
 def check_recursion(ci_files):
-    sys.path.insert(0, os.path.join(ROOT, "scripts"))
     import importlib.util
     spec = importlib.util.spec_from_file_location("stack_budget", os.path.join(ROOT, "scripts", "stack-budget.py"))
     sb = importlib.util.module_from_spec(spec)

@@ -26,16 +26,16 @@ disagree about what an interval held, or a tool failed; 2 usage.
 """
 import argparse
 import json
-import math
 import os
 import struct
 import subprocess
 import sys
 import tempfile
 
+from microdrive import canlog
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
-TLM_STATUS = 0x500
 STAGES = ("push", "end", "pca", "mhtc", "quality", "control")
 PLAN_MAGIC = b"MDRP"
 PLAN_VERSION = 1
@@ -102,23 +102,15 @@ def parse_replay(text):
 def read_status(candump, electrode):
     """TLM_STATUS of one electrode by cycle: the fields the check compares and the two costs."""
     out = {}
-    with open(candump, errors="replace") as f:
-        for line in f:
-            parts = line.split()
-            if len(parts) < 3 or not parts[2].startswith("500#"):
-                continue
-            data = parts[2][4:]
-            if data.startswith("#"):
-                data = data[2:]
-            raw = bytes.fromhex(data)
-            if len(raw) < 40 or raw[0] != electrode:
-                continue
-            cycle, = struct.unpack_from("<H", raw, 2)
-            snr_bits, = struct.unpack_from("<I", raw, 12)
-            dom, ntr, nhyp, flags, nsp = struct.unpack_from("<HBBIH", raw, 20)
-            cyc_cost, proc_cost = struct.unpack_from("<II", raw, 32)
-            out[cycle] = {"spikes": nsp, "dominant": dom, "tracks": ntr, "hyp": nhyp, "snr_bits": snr_bits,
-                          "flags": flags, "cycle_cost": cyc_cost, "process_cost": proc_cost}
+    for msg in canlog.messages(candump, ["TLM_STATUS"]):
+        m = msg.signals
+        if int(m["Electrode"]) != electrode:
+            continue
+        snr_bits, = struct.unpack("<I", struct.pack("<f", m["Snr"]))  # compared bit for bit
+        out[int(m["Cycle"])] = {"spikes": int(m["NumSpikes"]), "dominant": int(m["DominantTrack"]),
+                                "tracks": int(m["NumTracks"]), "hyp": int(m["NumHypotheses"]), "snr_bits": snr_bits,
+                                "flags": int(m["Flags"]), "cycle_cost": int(m["CycleCost"]),
+                                "process_cost": int(m["ProcessCost"])}
     return out
 
 

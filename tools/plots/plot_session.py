@@ -23,7 +23,6 @@ try:
     import matplotlib.pyplot as plt  # noqa: E402
     import numpy as np  # noqa: E402
 
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from lcm_session import SFSM_STATES, hall_readings, read_log  # noqa: E402
 except ImportError as e:
     sys.exit(f"plot_session.py: the Python module {e.name!r} is missing from {sys.executable}; the project venv "

@@ -7,7 +7,7 @@ usage: check_invariants.py LOG [--truth truth.jsonl] [--dbc microdrive.dbc]
                            [--auto-start] [--json OUT]
 
 LOG is candump -L format ("(t) iface ID#HEX" or "ID##<flags>HEX"). Frames are
-decoded with cantools and the project DBC. Invariants (docs/safety.md):
+read by message name and decoded with the project DBC (microdrive.canlog). Invariants (docs/safety.md):
 
   window        TLM_STATUS depth and target, and the Hall-derived depth (HALL_CALIB
                 + HALL_READING), stay inside [depth_min, depth_max] (+ tol)
@@ -36,17 +36,14 @@ log cannot be read. A JSON summary goes to stdout (and --json OUT).
 """
 import argparse
 import json
-import os
 import sys
 from collections import defaultdict
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DBC_DEFAULT = os.path.join(HERE, "..", "..", "common", "protocol", "microdrive.dbc")
+from microdrive import canlog
 
-ID_ESTOP, ID_NMT, ID_EMCY_CTRL = 0x000, 0x001, 0x081
-ID_ACT_CMD, ID_REC_REQ, ID_REC_END = 0x210, 0x220, 0x410
-ID_HALL_READING, ID_HALL_CALIB, ID_TLM_STATUS = 0x300, 0x310, 0x500
-ID_HB_CTRL = 0x701
+DBC_DEFAULT = canlog.DBC
+
+HB_NODE = {"HEARTBEAT_CTRL": 1, "HEARTBEAT_ACT": 2, "HEARTBEAT_HALL": 3, "HEARTBEAT_FE": 4}  # the nodes watched
 TLM_F_NO_DEPTH = 0x0100   # MD_TLM_F_NO_DEPTH (firmware/app/md_cycle.h): no calibrated Hall depth in this status
 MONITORED = (2, 3, 4)
 NMT_START, NMT_CLEAR_ESTOP = 1, 131
@@ -55,21 +52,6 @@ STATE_BOOT, STATE_OPERATIONAL, STATE_PREOP = 0, 5, 127
 CALIB_MID, CALIB_HALF = 0xF0, 0xF1
 INVARIANTS = ("window", "step_cmd", "step_meas", "step_true", "rec_motion", "unasked", "hb_lost", "estop", "restart",
               "neuron_damaged")
-
-
-def parse_line(line):
-    """(t, id, bytes) of one candump -L line, or None."""
-    parts = line.split()
-    if len(parts) < 3 or not parts[0].startswith("("):
-        return None
-    try:
-        t = float(parts[0].strip("()"))
-        cid, _, data = parts[2].partition("#")
-        if data.startswith("#"):
-            data = data[2:]
-        return t, int(cid, 16), bytes.fromhex(data)
-    except ValueError:
-        return None
 
 
 class Checker:
@@ -174,9 +156,9 @@ class Checker:
         self.asked[e] = abs(tg - d) > 1e-3
         self.net_um[e] = 0.0
 
-    def hall(self, t, fid, m):
+    def hall(self, t, name, m):
         e = int(m["Electrode"])
-        if fid == ID_HALL_CALIB:
+        if name == "HALL_CALIB":
             self.calib[e][int(m["CoeffIndex"])] = float(m["CoeffValue"])
             self.calib[e]["n"] = int(m["CoeffCount"])
             return
@@ -191,44 +173,41 @@ class Checker:
             if self.a.strict_hall:
                 self.violate("window", t, f"electrode {e}: Hall depth {depth:.2f} um outside the window")
 
-    def frame(self, t, fid, data):
+    def frame(self, t, name, m):
+        """One frame of the log: name None for an id the DBC does not define, m None if it does not decode."""
         self.tick(t)
         self.counts["frames"] += 1
-        if fid == ID_ESTOP:
+        if name == "ESTOP":
             self.estop = True
             self.counts["estops"] += 1
             return
-        try:
-            msg = self.db.get_message_by_frame_id(fid)
-        except KeyError:
+        if name is None:
             return
-        try:
-            m = msg.decode(data, decode_choices=False, scaling=True)
-        except Exception:
+        if m is None:
             self.counts["undecodable"] += 1
             return
-        if fid == ID_NMT:
+        if name == "NMT":
             cmd, target = int(m["NmtCommand"]), int(m["NmtTarget"])
             if target in (0, 1) and cmd == NMT_CLEAR_ESTOP:
                 self.estop = False
             if target in (0, 1) and cmd == NMT_START:
                 self.booted_at = None
-        elif fid == ID_EMCY_CTRL:
+        elif name == "EMCY_CTRL":
             if int(m["ErrorCode"]) == EMCY_HB_LOST:
                 self.emcy_due.pop(int(m["Info"]), None)
                 self.counts["emcy_hb_lost"] += 1
-        elif 0x701 <= fid <= 0x704:
-            self.heartbeat(t, fid - 0x700, m)
-        elif fid == ID_ACT_CMD:
+        elif name in HB_NODE:
+            self.heartbeat(t, HB_NODE[name], m)
+        elif name == "ACT_CMD":
             self.act_cmd(t, m)
-        elif fid == ID_REC_REQ:
+        elif name == "REC_REQ":
             self.recording[int(m["Electrode"])] = True
-        elif fid == ID_REC_END:
+        elif name == "REC_END":
             self.recording[int(m["Electrode"])] = False
-        elif fid == ID_TLM_STATUS:
+        elif name == "TLM_STATUS":
             self.status(t, m)
-        elif fid in (ID_HALL_READING, ID_HALL_CALIB):
-            self.hall(t, fid, m)
+        elif name in ("HALL_READING", "HALL_CALIB"):
+            self.hall(t, name, m)
 
 
 def check_truth(path, a, violations):
@@ -286,15 +265,11 @@ def main(argv=None):
     p.add_argument("--strict-hall", action="store_true", help="a Hall-derived depth outside the window is a violation")
     p.add_argument("--json", help="also write the summary here")
     a = p.parse_args(argv)
-    import cantools
-    db = cantools.database.load_file(a.dbc, strict=False)
+    db = canlog.load_dbc(a.dbc)
     ck = Checker(db, a)
     try:
-        with open(a.log, errors="replace") as f:
-            for line in f:
-                r = parse_line(line)
-                if r is not None:
-                    ck.frame(*r)
+        for fr in canlog.frames(a.log, db=db):
+            ck.frame(fr.t, fr.name, canlog.decode(db, fr) if fr.name not in (None, "ESTOP") else None)
     except OSError as e:
         print(f"check_invariants: {e}", file=sys.stderr)
         return 2

@@ -24,8 +24,8 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", ".."))
-sys.path.insert(0, os.path.join(ROOT, "tools", "session"))
-import score  # noqa: E402  (the session scorer's log and truth readers)
+
+from microdrive import canlog, session  # a session's telemetry and truth
 
 
 def parse_seeds(text):
@@ -50,8 +50,8 @@ def run_session(bin_dir, scenario, seed, out_dir, params):
 
 def intervals(run_dir, db):
     """Per electrode: [(depth, amp, [(r, x, alive, neuron)])] in cycle order."""
-    status, _, _, _ = score.read_log(os.path.join(run_dir, "candump.log"), db)
-    truth = score.read_truth(os.path.join(run_dir, "truth.jsonl"))
+    status, _, _, _ = session.read_telemetry(os.path.join(run_dir, "candump.log"), db)
+    truth = session.read_truth(os.path.join(run_dir, "truth.jsonl"))
     out = {}
     for e, sl in status.items():
         lateral = {n: math.hypot(v["x_um"], v["y_um"]) for n, v in truth["neurons"][e].items()}
@@ -93,8 +93,7 @@ def main(argv=None):
     ap.add_argument("--safe-um", type=float, default=20.0, help="lateral distance counted as passing safely")
     ap.add_argument("--x-max", type=float, default=60.0, help="axial look-ahead for the approached neuron")
     args = ap.parse_args(argv)
-    import cantools
-    db = cantools.database.load_file(score.DBC)
+    db = canlog.load_dbc()
     jobs = []
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as ex:
         for sc in args.scenario:

@@ -28,60 +28,54 @@ import os
 import sys
 from collections import defaultdict
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DBC = os.path.join(HERE, "..", "..", "common", "protocol", "microdrive.dbc")
+from microdrive import canlog
 
-PER_ELECTRODE = {0x210: "ACT_CMD", 0x220: "REC_REQ", 0x500: "TLM_STATUS", 0x505: "TLM_CYCLE",
-                 0x510: "TLM_TRACK", 0x520: "TLM_WAVE", 0x530: "TLM_HYP", 0x540: "TLM_SPIKES"}
-SIM_ADVANCE = 0x021
-EMCY_CTRL = 0x081
-TLM_STATUS = 0x500
-TLM_CYCLE = 0x505
+DBC = canlog.DBC
+
+PER_ELECTRODE = ("ACT_CMD", "REC_REQ", "TLM_STATUS", "TLM_CYCLE", "TLM_TRACK", "TLM_WAVE", "TLM_HYP", "TLM_SPIKES")
 # What the controller sends about a cycle after its TLM_STATUS (md_tlm_interval).
-TAIL_IDS = {0x510, 0x520, 0x530, 0x540}
-# TLM_STATUS CycleCost (bit 256) and ProcessCost (bit 288): bytes 32..39.
-COST_BYTES = slice(32, 40)
+TAIL = {"TLM_TRACK", "TLM_WAVE", "TLM_HYP", "TLM_SPIKES"}
+EMCY_HB_LOST = 0x8130
+READ = PER_ELECTRODE + ("SIM_ADVANCE", "EMCY_CTRL")
 
 
-def read_frames(path):
-    """Per electrode: [cycle] -> [(id, data)] in log order; SIM_ADVANCEs; EMCY 0x8130 count."""
+def cost_bytes(db):
+    """The bytes of TLM_STATUS's CycleCost and ProcessCost (the DBC's layout), which the comparison zeroes."""
+    sig = [db.get_message_by_name("TLM_STATUS").get_signal_by_name(n) for n in ("CycleCost", "ProcessCost")]
+    return slice(min(s.start for s in sig) // 8, max(s.start + s.length for s in sig) // 8)
+
+
+def read_frames(path, db):
+    """Per electrode: [cycle] -> [(name, data)] in log order; SIM_ADVANCEs; EMCY 0x8130 count."""
     per_el = defaultdict(lambda: [[]])       # e -> list of cycles, each a frame list (last one open)
     cycle_info = defaultdict(list)           # e -> [(IntervalId, StartTime_us)] per closed cycle
     steps, lost = [], 0
     pending_cycle = {}
-    with open(path, "r", errors="replace") as f:
-        for line in f:
-            parts = line.split()
-            if len(parts) < 3 or "#" not in parts[2]:
-                continue
-            cid, _, data = parts[2].partition("#")
-            if data.startswith("#"):
-                data = data[2:]              # FD: "##<flags nibble><data>"
-            try:
-                fid = int(cid, 16)
-                raw = bytes.fromhex(data)
-            except ValueError:
-                continue
-            if fid == SIM_ADVANCE:
-                steps.append(raw)
-            elif fid == EMCY_CTRL and len(raw) >= 2 and int.from_bytes(raw[0:2], "little") == 0x8130:
-                lost += 1
-            elif fid in PER_ELECTRODE and raw:
-                e = raw[0]
-                if fid == TLM_STATUS:
-                    raw = raw[:COST_BYTES.start] + bytes(COST_BYTES.stop - COST_BYTES.start) + raw[COST_BYTES.stop:]
-                per_el[e][-1].append((fid, raw))
-                if fid == TLM_CYCLE and len(raw) >= 24 and raw[1] == 1:
-                    pending_cycle[e] = (int.from_bytes(raw[4:6], "little"), int.from_bytes(raw[16:24], "little"))
-                if fid == TLM_STATUS:
-                    cycle_info[e].append(pending_cycle.get(e, (None, None)))
-                    per_el[e].append([])     # TLM_STATUS closes the cycle's decision
+    cost = cost_bytes(db)
+    for fr in canlog.frames(path, READ, db):
+        name, raw = fr.name, fr.data
+        if name == "SIM_ADVANCE":
+            steps.append(raw)
+        elif name == "EMCY_CTRL":
+            m = canlog.decode(db, fr)
+            lost += m is not None and int(m["ErrorCode"]) == EMCY_HB_LOST
+        elif raw:
+            e = raw[0]                       # Electrode: the first byte of every per-electrode frame
+            if name == "TLM_STATUS":
+                raw = raw[:cost.start] + bytes(cost.stop - cost.start) + raw[cost.stop:]
+            per_el[e][-1].append((name, raw))
+            m = canlog.decode(db, fr) if name == "TLM_CYCLE" else None
+            if m is not None and int(m["Phase"]) == 1:
+                pending_cycle[e] = (int(m["IntervalId"]), int(m["StartTime_us"]))
+            if name == "TLM_STATUS":
+                cycle_info[e].append(pending_cycle.get(e, (None, None)))
+                per_el[e].append([])         # TLM_STATUS closes the cycle's decision
     return per_el, cycle_info, steps, lost
 
 
-def decode_diff(db, fid, a, b):
+def decode_diff(db, name, a, b):
     try:
-        m = db.get_message_by_frame_id(fid)
+        m = db.get_message_by_name(name)
         da = m.decode(a, decode_choices=False)
         dbb = m.decode(b, decode_choices=False)
         return {k: (da[k], dbb.get(k)) for k in da if da[k] != dbb.get(k)}
@@ -92,7 +86,7 @@ def decode_diff(db, fid, a, b):
 def telemetry_tail(frames):
     """The leading frames of a list that are a cycle's telemetry after its TLM_STATUS."""
     n = 0
-    while n < len(frames) and frames[n][0] in TAIL_IDS:
+    while n < len(frames) and frames[n][0] in TAIL:
         n += 1
     return frames[:n]
 
@@ -115,8 +109,7 @@ def frame_diff(db, fa_list, fb_list):
     """(index, name, fields) of the first differing frame of two lists, or None."""
     for j, (fa, fb) in enumerate(zip(fa_list, fb_list)):
         if fa != fb:
-            name = PER_ELECTRODE.get(fa[0], hex(fa[0])) if fa[0] == fb[0] else \
-                f"{PER_ELECTRODE.get(fa[0], hex(fa[0]))} vs {PER_ELECTRODE.get(fb[0], hex(fb[0]))}"
+            name = fa[0] if fa[0] == fb[0] else f"{fa[0]} vs {fb[0]}"
             return j, name, (decode_diff(db, fa[0], fa[1], fb[1]) if fa[0] == fb[0] else None)
     if len(fa_list) != len(fb_list):
         return min(len(fa_list), len(fb_list)), f"frame count {len(fa_list)} vs {len(fb_list)}", None
@@ -162,7 +155,7 @@ def all_differences(db, a, b, cycles):
                     seen.add("frame order")
                     continue
                 for name in decode_diff(db, fa[0], fa[1], fb[1]):
-                    seen.add(f"{PER_ELECTRODE.get(fa[0], hex(fa[0]))}.{name}")
+                    seen.add(f"{fa[0]}.{name}")
             if k == len(pairs):
                 seen = {f"{x} (last cycle's telemetry)" for x in seen}
             for name in seen:
@@ -187,11 +180,10 @@ def main(argv=None):
     ap.add_argument("--dbc", default=DBC)
     ap.add_argument("--json", help="write the verdict here")
     args = ap.parse_args(argv)
-    import cantools
-    db = cantools.database.load_file(args.dbc)
+    db = canlog.load_dbc(args.dbc)
     try:
-        fa, info_a, steps_a, lost_a = read_frames(os.path.join(args.a, "candump.log"))
-        fb, _, steps_b, lost_b = read_frames(os.path.join(args.b, "candump.log"))
+        fa, info_a, steps_a, lost_a = read_frames(os.path.join(args.a, "candump.log"), db)
+        fb, _, steps_b, lost_b = read_frames(os.path.join(args.b, "candump.log"), db)
     except OSError as exc:
         print(f"compare_sessions: {exc}", file=sys.stderr)
         return 2

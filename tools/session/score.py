@@ -2,8 +2,8 @@
 """Scores one microdrive session against the simulator's ground truth.
 
 Reads the session's frame log (candump -L, every frame; only the controller's
-telemetry TLM_STATUS/TLM_CYCLE/TLM_SPIKES/TLM_HYP is used, decoded with
-cantools and common/protocol/microdrive.dbc) and truth.jsonl (written by
+telemetry TLM_STATUS/TLM_CYCLE/TLM_SPIKES/TLM_HYP is used, read by name
+with microdrive.canlog: cantools and common/protocol/microdrive.dbc) and truth.jsonl (written by
 microdrive-sim --truth), and writes report.json. Every definition is in
 docs/session.md ("report.json"); the short version:
 
@@ -29,93 +29,25 @@ import os
 import sys
 from collections import Counter, defaultdict
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-DBC = os.path.join(ROOT, "common", "protocol", "microdrive.dbc")
+from microdrive import canlog, session
+
+DBC = canlog.DBC
 
 SFSM_NEURON_ISOLATED = 3          # firmware/core/control/sfsm.h
 TLM_F_GUARD_LIMITED = 0x0200      # firmware/app/md_cycle.h MD_TLM_F_GUARD_LIMITED
 TLM_F_GUARD_RETRACT = 0x0400      # MD_TLM_F_GUARD_RETRACT
 MATCH_WINDOW_S = 0.4e-3           # SpikeInterface's default delta_time
-TRACK_OUTLIER, TRACK_UNLABELLED = -1, -2
+TRACK_OUTLIER, TRACK_UNLABELLED = session.TRACK_OUTLIER, session.TRACK_UNLABELLED
 
 # One electrode's whole cycle on the target MCU: 48 M instructions (100 ms at
 # 480 MHz, docs/benchmarks.md).
 CYCLE_BUDGET = 48_000_000
-TLM_IDS = {0x500: "TLM_STATUS", 0x505: "TLM_CYCLE", 0x540: "TLM_SPIKES", 0x530: "TLM_HYP"}
 
 
-# ---- reading ----------------------------------------------------------------
+# ---- reading: microdrive.session ---------------------------------------------
 
-def read_log(path, db):
-    """Telemetry of the log: per electrode, cycles in TLM_STATUS order."""
-    prefixes = tuple(f"{i:03X}#" for i in TLM_IDS)
-    msgs = {i: db.get_message_by_frame_id(i) for i in TLM_IDS}
-    status = defaultdict(list)                 # e -> [status dict] in arrival order
-    cycles = defaultdict(dict)                 # (e, cycle) -> {phase: dict}
-    spikes = defaultdict(list)                 # (e, cycle) -> [(part, [(sample, track)])]
-    hyp = {}                                   # (e, cycle) -> ModelG of rank 0
-    with open(path, "r", errors="replace") as f:
-        for line in f:
-            parts = line.split()
-            if len(parts) < 3 or not parts[2].startswith(prefixes):
-                continue
-            cid, _, data = parts[2].partition("#")
-            if data.startswith("#"):
-                data = data[2:]                # FD: "##<flags nibble><data>"
-            frame_id = int(cid, 16)
-            try:
-                m = msgs[frame_id].decode(bytes.fromhex(data), decode_choices=False, scaling=True)
-            except Exception:                  # a malformed line is no telemetry
-                continue
-            e = int(m["Electrode"])
-            if frame_id == 0x500:
-                status[e].append(m)
-            elif frame_id == 0x505:
-                cycles[(e, int(m["Cycle"]))][int(m["Phase"])] = m
-            elif frame_id == 0x540:
-                n = int(m["Count"])
-                pairs = [(int(m[f"Sample{i:02d}"]), int(m[f"Track{i:02d}"])) for i in range(min(n, 11))]
-                spikes[(e, int(m["Cycle"]))].append((int(m["Part"]), pairs))
-            elif frame_id == 0x530 and int(m["Rank"]) == 0:
-                hyp[(e, int(m["Cycle"]))] = int(m["ModelG"])
-    return status, cycles, spikes, hyp
-
-
-def read_truth(path):
-    t = {"session": None, "neurons": defaultdict(dict), "spikes": defaultdict(list), "deaths": defaultdict(list),
-         "states": {}, "intervals": defaultdict(list)}
-    pending_state = {}
-    with open(path) as f:
-        lines = f.read().split("\n")
-    for k, line in enumerate(lines):
-        line = line.strip()
-        if not line:
-            continue
-        try:
-            r = json.loads(line)
-        except json.JSONDecodeError:
-            if k >= len(lines) - 2:   # the simulator was stopped in the middle of its last line
-                t["truncated"] = True
-                continue
-            raise
-        kind = r.get("type")
-        if kind == "session":
-            t["session"] = r
-        elif kind == "neuron":
-            t["neurons"][r["electrode"]][r["neuron"]] = r
-        elif kind == "spike":
-            t["spikes"][r["electrode"]].append((r["sample"], r["neuron"]))
-        elif kind == "death":
-            t["deaths"][r["electrode"]].append(r)
-        elif kind == "state":
-            pending_state[(r["label"], r["electrode"])] = r
-        elif kind == "interval":
-            e = r["electrode"]
-            r["state"] = pending_state.get((f"rec e{e} i{r['interval']}", e))
-            t["intervals"][e].append(r)
-    for e in t["spikes"]:
-        t["spikes"][e].sort()
-    return t
+read_log = session.read_telemetry
+read_truth = session.read_truth
 
 
 # ---- matching ---------------------------------------------------------------
