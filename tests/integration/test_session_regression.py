@@ -5,7 +5,7 @@ little below what the full sweeps measured.
 
     test_session_regression.py BUILD_DIR SCENARIO_DIR OUT_DIR [--jobs J]
 
-Runs (in-process bus, one microdrive-session per seed, tools/session/evaluate.py):
+Runs (in-process bus, one microdrive-session per seed, microdrive.evaluation):
   * single_neuron, seeds 1-3, the scenario's full 1800 s (the final distance
     is a property of the end of the session: the tissue relaxes for 30 min);
   * empty_tissue, seeds 1-2, 300 s (30 cycles).
@@ -16,15 +16,12 @@ Checks:
 A failure names the figure, the bound and every seed's report line.
 """
 import argparse
+import concurrent.futures
 import os
 import statistics
 import sys
-import types
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(os.path.dirname(HERE))
-sys.path.insert(0, os.path.join(ROOT, "tools", "session"))
-import evaluate  # noqa: E402  (tools/session/evaluate.py: run_one, summarise)
+from microdrive import evaluation
 
 # Bounds. The full sweeps (docs/session.md, "Evaluation over seeds") measure,
 # for single_neuron over 20 seeds, isolation 100 % and zero damage; empty_tissue
@@ -40,13 +37,17 @@ EMPTY_SEEDS = (1, 2)
 EMPTY_DURATION_S = 300.0
 
 
+def run_one(build_dir, scenario, seed, duration_s, out):
+    extra = ["--duration-s", str(duration_s)] if duration_s else []
+    rc, wall, report, tail = evaluation.run_session(os.path.join(build_dir, "bin", "microdrive-session"), scenario,
+                                                    seed, os.path.join(out, f"seed-{seed}"), extra)
+    return seed, rc, wall, report, tail
+
+
 def sweep(build_dir, scenario, seeds, duration_s, out, jobs):
-    args = types.SimpleNamespace(build_dir=build_dir, scenario=scenario, bus="inproc", out=out, cycles=None,
-                                 duration_s=duration_s, keep_logs=False)
     os.makedirs(out, exist_ok=True)
-    import concurrent.futures
     with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as ex:
-        results = list(ex.map(lambda s: evaluate.run_one(args, s), seeds))
+        results = list(ex.map(lambda s: run_one(build_dir, scenario, s, duration_s, out), seeds))
     for seed, rc, wall, report, tail in results:
         if report is None:
             print(f"FAIL: {os.path.basename(scenario)} seed {seed}: no report (exit {rc})\n{tail}")

@@ -15,11 +15,12 @@ version) swung by more than the margins on changes that 30-seed runs showed to b
 narrow that (see docs/evaluation.md, "Regression checks").
 """
 import argparse
-import datetime
 import json
 import os
 import subprocess
 import sys
+
+from microdrive import evaluation
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -71,54 +72,10 @@ def figures(data):
     return out
 
 
-def make_bounds(figures, margin_of):
-    """{key: {"measured": v, "min"|"max": bound}} for figures {key: value}; margin_of(key) gives
-    (direction, margin). Figures that are None are left out. Shared with tools/external_eval."""
-    checks = {}
-    for key, v in figures.items():
-        if v is None:
-            continue
-        direction, margin = margin_of(key)
-        bound = v - margin if direction == "min" else v + margin
-        checks[key] = {"measured": round(v, 4), direction: round(bound, 4)}
-    return checks
-
-
-def write_thresholds(path, about, command, build, checks):
-    """Write a thresholds file: what it is, the command that measured it, the build, the date, the bounds."""
-    doc = {
-        "about": about,
-        "command": command,
-        "build": build,
-        "measured_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="minutes"),
-        "checks": checks,
-    }
-    with open(path, "w") as f:
-        json.dump(doc, f, indent=1)
-        f.write("\n")
-
-
-def check_bounds(checks, got, prefix="regression"):
-    """Print one ok/FAIL line per bound of `checks` against the figures `got`; return the failure count.
-    A figure that is missing from `got` fails."""
-    fails = 0
-    for key, c in sorted(checks.items()):
-        v = got.get(key)
-        if "min" in c:
-            ok, rule = v is not None and v >= c["min"], f">= {c['min']}"
-        else:
-            ok, rule = v is not None and v <= c["max"], f"<= {c['max']}"
-        fails += not ok
-        print(f"{'ok  ' if ok else 'FAIL'} {key}: {v if v is None else round(v, 4)} (bound {rule}, measured "
-              f"{c['measured']})")
-    print(f"{prefix}: {len(checks) - fails} passed, {fails} failed")
-    return fails
-
-
 def measure(args):
     data, cmd = run_subset(args.build_dir, args.work)
-    checks = make_bounds(figures(data), lambda key: MARGINS[key.rsplit("/", 1)[1]])
-    write_thresholds(
+    checks = evaluation.make_bounds(figures(data), lambda key: MARGINS[key.rsplit("/", 1)[1]])
+    evaluation.write_thresholds(
         THRESHOLDS,
         "Headline figures of the evaluation subset and their regression bounds (docs/evaluation.md). "
         "Regenerate on purpose, never to make a failing check pass: tools/eval/regression.py measure "
@@ -132,7 +89,7 @@ def check(args):
     with open(THRESHOLDS) as f:
         doc = json.load(f)
     data, _ = run_subset(args.build_dir, args.work)
-    fails = check_bounds(doc["checks"], figures(data))
+    fails = evaluation.check_bounds(doc["checks"], figures(data))
     return 1 if fails else 0
 
 

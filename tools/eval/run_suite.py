@@ -17,7 +17,7 @@ Each run is `microdrive-session --bus inproc --param tracker=N --no-lcm --no-plo
 in CACHE/<scenario>/<tracker>/seed-<n>/ (report.json + run.json: command, exit, wall time, build id). A
 rerun reuses every cached run whose goal matches: after a code change say so explicitly, --force (rerun
 all) or --rerun-stale (rerun the runs made by another build). The table names the build(s) it comes from
-and flags a mixed table. Scoring reuses tools/session/evaluate.py (summarise) on tools/session/score.py's
+and flags a mixed table. Running and summarising: microdrive.evaluation (python/), on tools/session/score.py's
 reports. Children run under nice (--nice, default 10). Progress: one line per run on stderr.
 Exit 0; 1 when a run failed (the table still written, failures counted).
 """
@@ -32,11 +32,10 @@ import statistics
 import subprocess
 import sys
 import threading
-import time
+
+from microdrive import evaluation
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.join(ROOT, "tools", "session"))
-import evaluate  # noqa: E402  (tools/session/evaluate.py's summary of reports: reused, not copied)
 
 TRACKERS = {0: "MHTC", 1: "MAP-NN", 2: "ML-NN", 3: "GNN"}
 
@@ -110,29 +109,19 @@ def run_one(args, job, bid):
     for name in ("report.json", "run.json"):
         if os.path.exists(os.path.join(d, name)):
             os.remove(os.path.join(d, name))
-    cmd = [args.session, "--scenario", scen_path, "--seed", str(seed), "--bus", "inproc", "--out", d,
-           "--param", f"tracker={tracker}", "--no-lcm", "--no-plots", "--no-recording", "--quiet"]
+    extra = ["--param", f"tracker={tracker}", "--no-plots"]
     for p in args.param:
-        cmd += ["--param", p]
+        extra += ["--param", p]
     if goal:
-        cmd += ["--duration-s", f"{goal['duration_s']:g}"]
-    t0 = time.monotonic()
-    p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                       preexec_fn=(lambda: os.nice(args.nice)) if args.nice else None)
-    wall = time.monotonic() - t0
-    report = None
-    if p.returncode in (0, 4) and os.path.exists(os.path.join(d, "report.json")):
-        with open(os.path.join(d, "report.json")) as f:
-            report = json.load(f)
-    if not args.keep_logs:
-        for name in ("candump.log", "truth.jsonl"):
-            if os.path.exists(os.path.join(d, name)):
-                os.remove(os.path.join(d, name))
-    run = {"scenario": scen, "tracker": tracker, "seed": seed, "goal": goal, "exit": p.returncode,
+        extra += ["--duration-s", f"{goal['duration_s']:g}"]
+    cmd = evaluation.session_command(args.session, scen_path, seed, d, extra)
+    rc, wall, report, tail = evaluation.run_session(args.session, scen_path, seed, d, extra, args.nice,
+                                                    args.keep_logs)
+    run = {"scenario": scen, "tracker": tracker, "seed": seed, "goal": goal, "exit": rc,
            "wall_s": round(wall, 2), "build": bid, "cmd": [os.path.relpath(c, ROOT) if os.path.isabs(c) else c
                                                            for c in cmd],
            "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-           "tail": p.stdout[-1500:] if report is None else ""}
+           "tail": tail[-1500:] if report is None else ""}
     with open(os.path.join(d, "run.json"), "w") as f:
         json.dump(run, f, indent=1)
     return job, run, report, False
@@ -145,7 +134,7 @@ def progress_line(i, n, job, run, report, cached):
         return f"{head}: FAILED (exit {run['exit']})\n{run.get('tail', '')}"
     els = ", ".join(
         f"e{e['electrode']} {'iso@' + str(e['cycles_to_isolation']) if e['isolated'] else 'not iso'}"
-        f" acc {evaluate.fmt(e['tracking']['accuracy'])} psi {e['tracking']['psi']}"
+        f" acc {evaluation.fmt(e['tracking']['accuracy'])} psi {e['tracking']['psi']}"
         for e in report["electrodes"])
     took = "cached" if cached else f"{run['wall_s']:.0f} s"
     return f"{head}: {took}: {els}"
@@ -154,9 +143,9 @@ def progress_line(i, n, job, run, report, cached):
 # ---- summarising --------------------------------------------------------------------------------------------
 
 def summarise(runs):
-    """evaluate.summarise plus the per-electrode figures it leaves out (spurious tracks, Ψ per interval)."""
+    """evaluation.summarise plus the per-electrode figures it leaves out (spurious tracks, Ψ per interval)."""
     results = [(r["seed"], r["exit"], r["wall_s"], rep, "") for r, rep in runs]
-    s = evaluate.summarise(results)
+    s = evaluation.summarise(results)
     els = [e for _, rep in runs if rep for e in rep["electrodes"]]
     s["mean_spurious_tracks"] = statistics.fmean([e["tracking"]["spurious_tracks"] for e in els]) if els else None
     cycles = sum(max(0, e["cycles"] - 1) for e in els if e["tracking"]["psi"] is not None)
@@ -174,7 +163,7 @@ def summarise(runs):
 
 
 def fmt(x, spec=".2f"):
-    return evaluate.fmt(x, spec)
+    return evaluation.fmt(x, spec)
 
 
 COLUMNS = [

@@ -18,8 +18,8 @@ ground truth of the visible units, prints one line per recording and tracker, an
 and, with --md, the report (docs/external-eval.md).
 
 `measure` / `check` run the CI subset (SUBSET below: one 60 s static recording, MHTC and the oracle) and
-write / compare the bounds in tools/external_eval/thresholds.json with the mechanism of
-tools/eval/regression.py (make_bounds, write_thresholds, check_bounds). Exit status: 0 ok, 1 a check
+write / compare the bounds in tools/external_eval/thresholds.json with the evaluation suite's regression
+mechanism (microdrive.evaluation: make_bounds, write_thresholds, check_bounds). Exit status: 0 ok, 1 a check
 failed, 2 bad input or a failed tool run (the message names the file and the reason).
 """
 import argparse
@@ -37,13 +37,11 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-sys.path.insert(0, HERE)
-sys.path.insert(0, os.path.join(ROOT, "tools", "eval"))
 
-import recordings  # noqa: E402  (also puts python/ on the path: microdrive)
-import microdrive  # noqa: E402
-import scoring  # noqa: E402
-import regression  # noqa: E402  (tools/eval/regression.py: the bounds mechanism)
+import microdrive
+import recordings  # this folder's: the script's own folder is on the path
+import scoring
+from microdrive import evaluation  # the bounds mechanism, shared with tools/eval/regression.py
 
 REPLAY_TRACKERS = ["mhtc", "map-nn", "ml-nn", "gnn"]
 TRACKERS = ["mhtc", "mhtc-online", "map-nn", "ml-nn", "gnn", "peer", "oracle", "oracle-thr"]
@@ -172,18 +170,12 @@ def evaluate_recording(rec, args, binary, trackers, prefix):
             samples, ids = scoring.read_labels(os.path.join(recdir, "peer", "labels.csv"))
             ps = read_json(os.path.join(recdir, "peer", "summary.json"))["summary"]
             add(t, samples, ids, {"tracks_issued": ps.get("tracks_created")}, secs["peer"])
-        elif t == "oracle":
+        elif t in ("oracle", "oracle-thr"):  # the oracle on MHTC's detections, or on the peer's threshold ones
+            det = "mhtc" if t == "oracle" else "peer"
             tic = time.perf_counter()
-            samples, _ = scoring.read_labels(os.path.join(recdir, "mhtc", "labels.csv"))
+            samples, _ = scoring.read_labels(os.path.join(recdir, det, "labels.csv"))
             ids = scoring.oracle(raw, gain, fs, samples, len(visible))
-            add(t, samples, ids, {"tracks_issued": len(visible), "detections": "mhtc"},
-                time.perf_counter() - tic)
-        elif t == "oracle-thr":
-            tic = time.perf_counter()
-            samples, _ = scoring.read_labels(os.path.join(recdir, "peer", "labels.csv"))
-            ids = scoring.oracle(raw, gain, fs, samples, len(visible))
-            add(t, samples, ids, {"tracks_issued": len(visible), "detections": "peer"},
-                time.perf_counter() - tic)
+            add(t, samples, ids, {"tracks_issued": len(visible), "detections": det}, time.perf_counter() - tic)
     return res
 
 
@@ -596,8 +588,8 @@ def ci_figures(args):
 def cmd_measure(args):
     os.makedirs(args.work, exist_ok=True)
     fig, r = ci_figures(args)
-    checks = regression.make_bounds(fig, lambda k: CI_MARGINS[k.rsplit("/", 1)[1]])
-    regression.write_thresholds(
+    checks = evaluation.make_bounds(fig, lambda k: CI_MARGINS[k.rsplit("/", 1)[1]])
+    evaluation.write_thresholds(
         THRESHOLDS,
         "CI subset of the external evaluation (docs/external-eval.md): one short SpikeInterface-generated "
         "recording, MHTC and the whole-session oracle, accuracy against the ground truth, bounds a little "
@@ -618,7 +610,7 @@ def cmd_check(args):
         raise EvalError(f"{THRESHOLDS}: cannot read the bounds ({e}); measure them first")
     os.makedirs(args.work, exist_ok=True)
     fig, _ = ci_figures(args)
-    return 1 if regression.check_bounds(checks, fig, prefix="external-eval") else 0
+    return 1 if evaluation.check_bounds(checks, fig, prefix="external-eval") else 0
 
 
 def main(argv=None):

@@ -21,13 +21,10 @@ Written into the recording directory (the recording by microdrive.write_samples,
 import csv
 import json
 import os
-import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
-                                "python"))
-import microdrive  # noqa: E402  (python/microdrive: the project's recording writer and replay runner)
+import microdrive  # python/microdrive: the project's recording writer and replay runner
 
 FS = 30000.0
 GAIN_UV = 0.195              # uV per int16 step, the simulator's ADC gain (host_sim/model/signal.c)
