@@ -7,6 +7,7 @@
 #include "bench_core.h"
 
 #include <math.h>
+#include <stdbool.h>
 #include <string.h>
 
 #include "cluster/cluster.h"
@@ -141,8 +142,11 @@ static md_status_t stage_quality(void)
     return ic_score(&g_ws, &g_out);
 }
 
-/* As md_cycle.c decide() with default parameters and a 0..5000 µm window. */
-static md_status_t stage_control(void)
+/* md_cycle.c decide() with the library defaults: the SFSM's input from the interval's result at depth_um
+ * in the window [depth_min_um, depth_max_um], the SNR curve of the dominant track observed and its
+ * suggestion, one SFSM step (*out); the curve of a track the SFSM resets is dropped. */
+static md_status_t bench_decide(double depth_um, double depth_min_um, double depth_max_um, bool spikes_seen,
+                                sfsm_output_t *out)
 {
     sc_config_t scc;
     sc_config_default(&scc);
@@ -152,24 +156,29 @@ static md_status_t stage_control(void)
     in.dominant_track = g_out.dominant;
     in.snr = g_out.snr;
     in.iqm = g_out.iqm;
-    in.spikes_seen = g_out.n_spikes > 0u;
-    in.depth_um = g_depth_um;
-    in.depth_min_um = 0.0;
-    in.depth_max_um = 5000.0;
+    in.spikes_seen = spikes_seen;
+    in.depth_um = depth_um;
+    in.depth_min_um = depth_min_um;
+    in.depth_max_um = depth_max_um;
     if (g_out.has_dominant) {
         sc_curve_t *curve = NULL;
-        if (sc_table_observe(&g_curves, &scc, g_out.dominant, g_depth_um, g_out.snr, &curve) == MD_OK &&
-            curve != NULL) {
-            (void)sc_curve_suggest(curve, &scc, g_depth_um, g_sfsm.search_dir, &in.suggestion);
+        if (sc_table_observe(&g_curves, &scc, g_out.dominant, depth_um, g_out.snr, &curve) == MD_OK && curve != NULL) {
+            (void)sc_curve_suggest(curve, &scc, depth_um, g_sfsm.search_dir, &in.suggestion);
         }
     }
-    sfsm_output_t out;
-    memset(&out, 0, sizeof out);
-    const md_status_t st = sfsm_decide(&g_sfsm, &in, &out);
-    if (st == MD_OK && out.reset_curve) {
-        (void)sc_table_reset_track(&g_curves, out.reset_track);
+    memset(out, 0, sizeof *out);
+    const md_status_t st = sfsm_decide(&g_sfsm, &in, out);
+    if (st == MD_OK && out->reset_curve) {
+        (void)sc_table_reset_track(&g_curves, out->reset_track);
     }
     return st;
+}
+
+/* As md_cycle.c decide() with default parameters and a 0..5000 µm window. */
+static md_status_t stage_control(void)
+{
+    sfsm_output_t out;
+    return bench_decide(g_depth_um, 0.0, 5000.0, g_out.n_spikes > 0u, &out);
 }
 
 static md_status_t run_raw(bench_stage_t s)
@@ -409,32 +418,11 @@ static md_status_t rp_score(void)
 static md_status_t rp_control(void)
 {
     const double depth = isfinite(g_rp_depth_um) ? g_rp_depth_um : 0.0;
-    sc_config_t scc;
-    sc_config_default(&scc);
-    sfsm_input_t in;
-    memset(&in, 0, sizeof in);
-    in.has_dominant = g_out.has_dominant;
-    in.dominant_track = g_out.dominant;
-    in.snr = g_out.snr;
-    in.iqm = g_out.iqm;
-    in.spikes_seen = ((double)g_out.n_windows / ((double)g_rp_n / (double)g_rp_fs_hz) >= RP_MIN_RATE_HZ) &&
-                     (g_out.n_windows > 0u);
-    in.depth_um = depth;
-    in.depth_min_um = RP_DEPTH_MIN_UM;
-    in.depth_max_um = RP_DEPTH_MAX_UM;
-    if (g_out.has_dominant) {
-        sc_curve_t *curve = NULL;
-        if (sc_table_observe(&g_curves, &scc, g_out.dominant, depth, g_out.snr, &curve) == MD_OK && curve != NULL) {
-            (void)sc_curve_suggest(curve, &scc, depth, g_sfsm.search_dir, &in.suggestion);
-        }
-    }
+    const bool spikes_seen = ((double)g_out.n_windows / ((double)g_rp_n / (double)g_rp_fs_hz) >= RP_MIN_RATE_HZ) &&
+                             (g_out.n_windows > 0u);
     sfsm_output_t out;
-    memset(&out, 0, sizeof out);
-    if (sfsm_decide(&g_sfsm, &in, &out) != MD_OK) {
+    if (bench_decide(depth, RP_DEPTH_MIN_UM, RP_DEPTH_MAX_UM, spikes_seen, &out) != MD_OK) {
         return MD_OK; /* the controller holds: HALTED asks for nothing */
-    }
-    if (out.reset_curve) {
-        (void)sc_table_reset_track(&g_curves, out.reset_track);
     }
     ag_unit_t unit[AG_UNITS_MAX];
     size_t n = 0u;

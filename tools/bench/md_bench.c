@@ -14,9 +14,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "bench_core.h"
+#include "tool_time.h"
 
 #if defined(__has_include)
 #if __has_include(<valgrind/callgrind.h>)
@@ -31,20 +31,6 @@
 #define MB_RUNS_MAX 1000u
 
 static double g_ms[BENCH_ST_COUNT][MB_RUNS_MAX];
-
-static double mb_now_ms(void)
-{
-    struct timespec ts;
-    (void)clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
-}
-
-static int mb_cmp(const void *a, const void *b)
-{
-    const double x = *(const double *)a;
-    const double y = *(const double *)b;
-    return (x < y) ? -1 : ((x > y) ? 1 : 0);
-}
 
 static int mb_write_features(const char *path)
 {
@@ -90,9 +76,9 @@ static int mb_timed(size_t runs)
     double cycle_ms = 0.0;
     for (size_t r = 0u; r < runs; ++r) {
         for (unsigned s = 0u; s < (unsigned)BENCH_ST_COUNT; ++s) {
-            const double t0 = mb_now_ms();
+            const double t0 = tool_now_ms();
             const md_status_t st = bench_run_stage((bench_stage_t)s);
-            g_ms[s][r] = mb_now_ms() - t0;
+            g_ms[s][r] = tool_now_ms() - t0;
             if (st != MD_OK) {
                 (void)fprintf(stderr, "md-bench: stage %s failed: %s\n", bench_stage_name((bench_stage_t)s),
                               md_status_name(st));
@@ -101,7 +87,7 @@ static int mb_timed(size_t runs)
         }
     }
     for (unsigned s = 0u; s < (unsigned)BENCH_ST_COUNT; ++s) {
-        qsort(g_ms[s], runs, sizeof g_ms[s][0], mb_cmp);
+        qsort(g_ms[s], runs, sizeof g_ms[s][0], tool_cmp_double);
         const double med = g_ms[s][runs / 2u];
         printf("stage %s median_ms %.4f min_ms %.4f max_ms %.4f runs %zu in_cycle %d\n",
                bench_stage_name((bench_stage_t)s), med, g_ms[s][0], g_ms[s][runs - 1u], runs,

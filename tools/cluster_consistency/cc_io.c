@@ -74,6 +74,52 @@ static int cc_record(const char *line, uint64_t *s, uint32_t *c, int32_t *id)
     return 0;
 }
 
+/* Strips the line end (\n or \r\n) of a getline() result of n bytes: the length left. */
+static size_t cc_chomp(char *line, size_t n)
+{
+    size_t len = n;
+    if ((len > 0u) && (line[len - 1u] == '\n')) {
+        line[--len] = '\0';
+    }
+    if ((len > 0u) && (line[len - 1u] == '\r')) {
+        line[--len] = '\0';
+    }
+    return len;
+}
+
+/* One line of ground_truth.csv (line_no from 1, len its length without the line end): a record of
+ * channel ch appended to *truth (its samples ascending after *last); the header, an empty line or
+ * another channel's record skipped. MD_E_FRAME or the append's status, with *why. */
+static md_status_t cc_truth_line(cc_truth_t *truth, size_t *cap, const char *line, size_t len, size_t line_no,
+                                 uint32_t ch, uint64_t *last, const char **why)
+{
+    if (strlen(line) != len) {
+        *why = "NUL byte in the line";
+        return MD_E_FRAME;
+    }
+    if ((len == 0u) || ((line_no == 1u) && (strcmp(line, CC_TRUTH_HEADER) == 0))) {
+        return MD_OK;
+    }
+    uint64_t s = 0u;
+    uint32_t c = 0u;
+    int32_t id = 0;
+    if (cc_record(line, &s, &c, &id) != 0) {
+        *why = "not a record SAMPLE,CHANNEL,NEURON (decimal integers: uint64, uint32, int32)";
+        return MD_E_FRAME;
+    }
+    if ((c != ch) || (id < 0)) {
+        return MD_OK;
+    }
+    if (s < *last) {
+        *why = "samples of the channel not ascending"; /* the exporter writes them ascending */
+        return MD_E_FRAME;
+    }
+    *last = s;
+    const md_status_t st = truth_push(truth, cap, s, id);
+    *why = (st != MD_OK) ? "out of memory" : NULL;
+    return st;
+}
+
 md_status_t cc_read_truth(const char *dir, uint32_t ch, cc_truth_t *truth, char *err, size_t errlen)
 {
     memset(truth, 0, sizeof *truth);
@@ -97,40 +143,7 @@ md_status_t cc_read_truth(const char *dir, uint32_t ch, cc_truth_t *truth, char 
     ssize_t n = 0;
     while ((st == MD_OK) && ((n = getline(&line, &line_cap, f)) >= 0)) {
         line_no++;
-        size_t len = (size_t)n;
-        if ((len > 0u) && (line[len - 1u] == '\n')) {
-            line[--len] = '\0';
-        }
-        if ((len > 0u) && (line[len - 1u] == '\r')) {
-            line[--len] = '\0';
-        }
-        if (strlen(line) != len) {
-            why = "NUL byte in the line";
-            st = MD_E_FRAME;
-            break;
-        }
-        if ((len == 0u) || ((line_no == 1u) && (strcmp(line, CC_TRUTH_HEADER) == 0))) {
-            continue;
-        }
-        uint64_t s = 0u;
-        uint32_t c = 0u;
-        int32_t id = 0;
-        if (cc_record(line, &s, &c, &id) != 0) {
-            why = "not a record SAMPLE,CHANNEL,NEURON (decimal integers: uint64, uint32, int32)";
-            st = MD_E_FRAME;
-            break;
-        }
-        if ((c != ch) || (id < 0)) {
-            continue;
-        }
-        if (s < last) {
-            why = "samples of the channel not ascending"; /* the exporter writes them ascending */
-            st = MD_E_FRAME;
-            break;
-        }
-        last = s;
-        st = truth_push(truth, &cap, s, id);
-        why = (st != MD_OK) ? "out of memory" : NULL;
+        st = cc_truth_line(truth, &cap, line, cc_chomp(line, (size_t)n), line_no, ch, &last, &why);
     }
     const int read_error = ferror(f);
     free(line);

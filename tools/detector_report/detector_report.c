@@ -158,6 +158,40 @@ static void print_sizes(void)
     printf("| pca_work_t | %zu | PCA scratch (shareable across channels) |\n", sizeof(pca_work_t));
 }
 
+/* The report: the setup in one paragraph, then one row per SNR and detector over every seed. 1 if a run
+ * failed. */
+static int print_table(const opts_t *op)
+{
+    const opts_t o = *op;
+    printf("Synthetic intervals: %.1f s at %u Hz, %s Gaussian noise (RMS 20 counts), "
+           "firing %.0f Hz with 3 ms refractory gap, %u seeds per cell. Detectors: threshold k = %.2f, "
+           "dead time 1 ms, negative polarity; wavelet %s, %u scales 0.5-1.0 ms, L = %.3f, "
+           "warm-up %.0f ms, refinement %s. Streaming pipeline, %u-sample chunks. "
+           "SNR = template peak-to-peak / noise RMS. Hit = detection within 0.5 ms of a true trough.\n\n",
+           o.seconds, o.fs, o.band ? "band-limited ([1 2 1] low-pass)" : "white", o.rate_hz, o.seeds, o.k_sigma,
+           o.dog1 ? "first-difference B-spline (DOG1)" : "second-difference B-spline (Mexican hat)", o.scales, o.cost_l,
+           o.warmup_ms, o.refine ? "on" : "off", CHUNK);
+    printf("| SNR | detector | true spikes | detection rate | false-positive fraction | false positives / s |\n");
+    printf("|---:|---|---:|---:|---:|---:|\n");
+    int bad = 0;
+    for (double snr = o.snr_min; snr <= o.snr_max + 1e-9; snr += 1.0) {
+        for (int m = 0; m < 2; ++m) {
+            const sd_method_t method = (m == 0) ? SD_METHOD_THRESHOLD : SD_METHOD_WAVELET;
+            tally_t t = {0u, 0u, 0u, 0u, 0u, 0u};
+            for (unsigned s = 0u; s < o.seeds; ++s) {
+                run_one(&o, method, snr, 1000u + s, &t);
+            }
+            const double rate = (t.truth > 0u) ? (double)t.hits / (double)t.truth : 0.0;
+            const double fpf = (t.det > 0u) ? (double)t.fp / (double)t.det : 0.0;
+            printf("| %.0f | %s | %zu | %.3f | %.3f | %.2f |%s\n", snr, (m == 0) ? "threshold" : "wavelet", t.truth,
+                   rate, fpf, (double)t.fp / (o.seconds * (double)o.seeds),
+                   (t.failures || t.overflow) ? " (failures/overflow!)" : "");
+            bad |= (t.failures > 0u);
+        }
+    }
+    return bad ? 1 : 0;
+}
+
 int main(int argc, char **argv)
 {
     if ((argc == 2) && (strcmp(argv[1], "--sizes") == 0)) {
@@ -198,31 +232,5 @@ int main(int argc, char **argv)
         printf("bench: %zu true spikes, %zu hits, %zu detections\n", t.truth, t.hits, t.det);
         return (t.failures > 0u) ? 1 : 0;
     }
-    printf("Synthetic intervals: %.1f s at %u Hz, %s Gaussian noise (RMS 20 counts), "
-           "firing %.0f Hz with 3 ms refractory gap, %u seeds per cell. Detectors: threshold k = %.2f, "
-           "dead time 1 ms, negative polarity; wavelet %s, %u scales 0.5-1.0 ms, L = %.3f, "
-           "warm-up %.0f ms, refinement %s. Streaming pipeline, %u-sample chunks. "
-           "SNR = template peak-to-peak / noise RMS. Hit = detection within 0.5 ms of a true trough.\n\n",
-           o.seconds, o.fs, o.band ? "band-limited ([1 2 1] low-pass)" : "white", o.rate_hz, o.seeds, o.k_sigma,
-           o.dog1 ? "first-difference B-spline (DOG1)" : "second-difference B-spline (Mexican hat)", o.scales, o.cost_l,
-           o.warmup_ms, o.refine ? "on" : "off", CHUNK);
-    printf("| SNR | detector | true spikes | detection rate | false-positive fraction | false positives / s |\n");
-    printf("|---:|---|---:|---:|---:|---:|\n");
-    int bad = 0;
-    for (double snr = o.snr_min; snr <= o.snr_max + 1e-9; snr += 1.0) {
-        for (int m = 0; m < 2; ++m) {
-            const sd_method_t method = (m == 0) ? SD_METHOD_THRESHOLD : SD_METHOD_WAVELET;
-            tally_t t = {0u, 0u, 0u, 0u, 0u, 0u};
-            for (unsigned s = 0u; s < o.seeds; ++s) {
-                run_one(&o, method, snr, 1000u + s, &t);
-            }
-            const double rate = (t.truth > 0u) ? (double)t.hits / (double)t.truth : 0.0;
-            const double fpf = (t.det > 0u) ? (double)t.fp / (double)t.det : 0.0;
-            printf("| %.0f | %s | %zu | %.3f | %.3f | %.2f |%s\n", snr, (m == 0) ? "threshold" : "wavelet", t.truth,
-                   rate, fpf, (double)t.fp / (o.seconds * (double)o.seeds),
-                   (t.failures || t.overflow) ? " (failures/overflow!)" : "");
-            bad |= (t.failures > 0u);
-        }
-    }
-    return bad ? 1 : 0;
+    return print_table(&o);
 }

@@ -341,6 +341,22 @@ static void on_cycle(lb_t *st, const md_frame_t *f)
     group_maybe_publish(st, g);
 }
 
+/* The group of (electrode, cycle) for entry `index` of a table of `cap` (TLM_TRACK's index, TLM_HYP's
+ * rank), counted as telemetry; NULL when group_get refuses or the index is out of range (dropped). */
+static lb_group_t *group_entry(lb_t *st, uint8_t electrode, uint16_t cycle, size_t index, size_t cap)
+{
+    lb_group_t *g = group_get(st, electrode, cycle);
+    if (g == NULL) {
+        return NULL;
+    }
+    if (index >= cap) {
+        st->stats.dropped++;
+        return NULL;
+    }
+    st->stats.telemetry++;
+    return g;
+}
+
 static void on_track(lb_t *st, const md_frame_t *f)
 {
     struct md_can_tlm_track_t r;
@@ -348,15 +364,10 @@ static void on_track(lb_t *st, const md_frame_t *f)
         st->stats.malformed++;
         return;
     }
-    lb_group_t *g = group_get(st, r.electrode, r.cycle);
+    lb_group_t *g = group_entry(st, r.electrode, r.cycle, r.index, LB_MAX_TRACKS);
     if (g == NULL) {
         return;
     }
-    if (r.index >= LB_MAX_TRACKS) {
-        st->stats.dropped++;
-        return;
-    }
-    st->stats.telemetry++;
     g->track_have[r.index] = true;
     g->track[r.index] = r;
     group_maybe_publish(st, g);
@@ -406,15 +417,10 @@ static void on_hyp(lb_t *st, const md_frame_t *f)
         st->stats.malformed++;
         return;
     }
-    lb_group_t *g = group_get(st, r.electrode, r.cycle);
+    lb_group_t *g = group_entry(st, r.electrode, r.cycle, r.rank, LB_MAX_HYPS);
     if (g == NULL) {
         return;
     }
-    if (r.rank >= LB_MAX_HYPS) {
-        st->stats.dropped++;
-        return;
-    }
-    st->stats.telemetry++;
     g->hyp_have[r.rank] = true;
     g->hyp[r.rank] = r;
     group_maybe_publish(st, g);

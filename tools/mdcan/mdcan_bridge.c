@@ -238,120 +238,153 @@ static int serial_to_bus(int fd, md_link_decoder_t *d, md_bus_t *bus, bridge_sta
     return 0;
 }
 
-int mdcan_bridge_main(int argc, char **argv)
-{
+typedef struct {
     const char *serial[BRIDGE_LINES_MAX];
-    const char *spec = NULL;
-    int lines = 0;
-    long wait_ms = 10000;
+    int lines;
+    const char *spec;
+    long wait_ms;
+} bridge_opts_t;
+
+/* --serial PATH... --bus SPEC [--wait-ms MS]: 0, or 2 after the usage. */
+static int bridge_parse(int argc, char **argv, bridge_opts_t *o)
+{
+    o->lines = 0;
+    o->spec = NULL;
+    o->wait_ms = 10000;
     for (int i = 2; i < argc; ++i) {
-        if (strcmp(argv[i], "--serial") == 0 && i + 1 < argc && lines < BRIDGE_LINES_MAX) {
-            serial[lines++] = argv[++i];
+        if (strcmp(argv[i], "--serial") == 0 && i + 1 < argc && o->lines < BRIDGE_LINES_MAX) {
+            o->serial[o->lines++] = argv[++i];
         } else if (strcmp(argv[i], "--bus") == 0 && i + 1 < argc) {
-            spec = argv[++i];
+            o->spec = argv[++i];
         } else if (strcmp(argv[i], "--wait-ms") == 0 && i + 1 < argc) {
             char *end = NULL;
-            wait_ms = strtol(argv[++i], &end, 10);
-            if (end == argv[i] || *end != '\0' || wait_ms < 0) {
+            o->wait_ms = strtol(argv[++i], &end, 10);
+            if (end == argv[i] || *end != '\0' || o->wait_ms < 0) {
                 return bridge_usage();
             }
         } else {
             return bridge_usage();
         }
     }
-    if (lines == 0 || spec == NULL) {
-        return bridge_usage();
-    }
+    return (o->lines == 0 || o->spec == NULL) ? bridge_usage() : 0;
+}
+
+/* Signals, the bus and every serial line, in order (QEMU serves its chardevs one after the other):
+ * 0, or the exit status with nothing left open. */
+static int bridge_open(const bridge_opts_t *o, md_bus_t *bus, int *fds)
+{
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
     (void)sigaction(SIGINT, &sa, NULL);
     (void)sigaction(SIGTERM, &sa, NULL);
     (void)signal(SIGPIPE, SIG_IGN); /* a closed serial side is an EPIPE, handled below */
-    md_bus_t bus;
     char why[200] = "";
-    const int rc = md_bus_open(&bus, spec, why, sizeof why);
+    const int rc = md_bus_open(bus, o->spec, why, sizeof why);
     if (rc != 0) {
-        fprintf(stderr, "mdcan bridge: cannot open bus '%s': %s (%s)\n", spec, why, strerror(-rc));
+        fprintf(stderr, "mdcan bridge: cannot open bus '%s': %s (%s)\n", o->spec, why, strerror(-rc));
         return 3;
     }
-    if (bus.kind == MD_BUS_INPROC || md_bus_fd(&bus) < 0) {
-        fprintf(stderr, "mdcan bridge: bus '%s' has no file descriptor to wait on (inproc?)\n", spec);
-        md_bus_close(&bus);
+    if (bus->kind == MD_BUS_INPROC || md_bus_fd(bus) < 0) {
+        fprintf(stderr, "mdcan bridge: bus '%s' has no file descriptor to wait on (inproc?)\n", o->spec);
+        md_bus_close(bus);
         return 2;
     }
-    /* QEMU serves its chardevs one after the other: connect in order */
-    int fds[BRIDGE_LINES_MAX];
-    for (int j = 0; j < lines; ++j) {
-        fds[j] = open_serial(serial[j], wait_ms);
+    for (int j = 0; j < o->lines; ++j) {
+        fds[j] = open_serial(o->serial[j], o->wait_ms);
         if (fds[j] < 0) {
             for (int k = 0; k < j; ++k) {
                 (void)close(fds[k]);
             }
-            md_bus_close(&bus);
+            md_bus_close(bus);
             return 3;
         }
-        fprintf(stderr, "mdcan bridge: serial %s <-> bus %s (%s)\n", serial[j], bus.name, why);
+        fprintf(stderr, "mdcan bridge: serial %s <-> bus %s (%s)\n", o->serial[j], bus->name, why);
     }
-    const int fd = fds[0]; /* frames from the serial side: the first line */
-    static md_link_decoder_t dec;
-    md_link_decoder_init(&dec);
-    static txq_t q[BRIDGE_LINES_MAX];
+    return 0;
+}
+
+/* Every queue written to its line; false when one is closed or fails (*status 1 for a failure). */
+static bool bridge_flush(txq_t *q, const int *fds, int lines, bridge_stats_t *st, int *status)
+{
     for (int j = 0; j < lines; ++j) {
-        q[j] = (txq_t){0u, 0u, j};
+        if (txq_flush(&q[j], fds[j], st) != 0) {
+            if (errno == EPIPE || errno == ECONNRESET) {
+                fprintf(stderr, "mdcan bridge: serial side closed\n");
+            } else {
+                fprintf(stderr, "mdcan bridge: serial write failed: %s\n", strerror(errno));
+                *status = 1;
+            }
+            return false;
+        }
     }
+    return true;
+}
+
+/* Frames both ways until a signal, a closed side or a failure: the exit status (0 or 1). Frames from the
+ * serial side come from the first line. */
+static int bridge_loop(md_bus_t *bus, const int *fds, int lines, md_link_decoder_t *dec, txq_t *q, bridge_stats_t *st)
+{
     int next = 0;
-    bridge_stats_t st;
-    memset(&st, 0, sizeof st);
     int status = 0;
-    bool closed = false;
-    while (g_stop == 0 && !closed) {
+    while (g_stop == 0) {
         struct pollfd pfd[BRIDGE_LINES_MAX + 1];
         for (int j = 0; j < lines; ++j) {
             pfd[j] = (struct pollfd){fds[j], (short)((j == 0 ? POLLIN : 0) | (txq_used(&q[j]) > 0u ? POLLOUT : 0)), 0};
         }
-        pfd[lines] = (struct pollfd){md_bus_fd(&bus), POLLIN, 0};
+        pfd[lines] = (struct pollfd){md_bus_fd(bus), POLLIN, 0};
         const int n = poll(pfd, (nfds_t)lines + 1u, BRIDGE_POLL_MS);
         if (n < 0 && errno != EINTR) {
-            status = 1;
-            break;
+            return 1;
         }
-        if (bus_to_queue(&bus, q, lines, &next, &st) != 0) {
+        if (bus_to_queue(bus, q, lines, &next, st) != 0) {
             fprintf(stderr, "mdcan bridge: bus receive failed\n");
-            status = 1;
-            break;
+            return 1;
         }
-        for (int j = 0; j < lines && !closed; ++j) {
-            if (txq_flush(&q[j], fds[j], &st) != 0) {
-                if (errno == EPIPE || errno == ECONNRESET) {
-                    fprintf(stderr, "mdcan bridge: serial side closed\n");
-                } else {
-                    fprintf(stderr, "mdcan bridge: serial write failed: %s\n", strerror(errno));
-                    status = 1;
-                }
-                closed = true;
-            }
+        if (!bridge_flush(q, fds, lines, st, &status)) {
+            return status;
         }
-        if (closed) {
-            break;
-        }
-        const int r = serial_to_bus(fd, &dec, &bus, &st);
+        const int r = serial_to_bus(fds[0], dec, bus, st);
         if (r != 0) {
             if (r < 0) {
                 fprintf(stderr, "mdcan bridge: serial read failed: %s\n", strerror(errno));
-                status = 1;
-            } else {
-                fprintf(stderr, "mdcan bridge: serial side closed\n");
+                return 1;
             }
-            break;
+            fprintf(stderr, "mdcan bridge: serial side closed\n");
+            return 0;
         }
         if ((pfd[0].revents & (POLLHUP | POLLERR)) != 0 && (pfd[0].revents & POLLIN) == 0) {
             fprintf(stderr, "mdcan bridge: serial side hung up\n");
-            break;
+            return 0;
         }
     }
+    return status;
+}
+
+int mdcan_bridge_main(int argc, char **argv)
+{
+    bridge_opts_t o;
+    int rc = bridge_parse(argc, argv, &o);
+    if (rc != 0) {
+        return rc;
+    }
+    md_bus_t bus;
+    int fds[BRIDGE_LINES_MAX];
+    rc = bridge_open(&o, &bus, fds);
+    if (rc != 0) {
+        return rc;
+    }
+    static md_link_decoder_t dec;
+    md_link_decoder_init(&dec);
+    static txq_t q[BRIDGE_LINES_MAX];
+    for (int j = 0; j < o.lines; ++j) {
+        q[j] = (txq_t){0u, 0u, j};
+    }
+    bridge_stats_t st;
+    memset(&st, 0, sizeof st);
+    int status = bridge_loop(&bus, fds, o.lines, &dec, q, &st);
     print_stats(&st, &dec, &bus);
-    for (int j = 0; j < lines; ++j) {
+    for (int j = 0; j < o.lines; ++j) {
         (void)close(fds[j]);
     }
     md_bus_close(&bus);

@@ -19,11 +19,11 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <time.h>
 
 #include "control/approach_guard.h"
 #include "pipeline/interval_chain.h"
 #include "recording.h"
+#include "tool_time.h"
 #include "tracking/mhtc.h"
 
 #define RP_Q_UV_DEFAULT 10.0      ///< process-noise std per waveform sample and interval (µV)
@@ -100,7 +100,69 @@ static int rp_num(const char *s, double lo, double hi, double *v)
     return 0;
 }
 
-static int rp_parse_args(int argc, char **argv, rp_options_t *o)
+#define RP_NOT_MINE 2 /* an option helper's answer for an option it does not know */
+
+/* --recording, --out, --tracker, --interval, --channel, --q-uv, --init-uv, --evidence: 0, 1 for a bad
+ * value, RP_NOT_MINE. */
+static int rp_option_chain(rp_options_t *o, const char *a, const char *v)
+{
+    double x = 0.0;
+    int bad = 0;
+    if (strcmp(a, "--recording") == 0) {
+        o->recording = v;
+    } else if (strcmp(a, "--out") == 0) {
+        o->out = v;
+    } else if (strcmp(a, "--tracker") == 0) {
+        bad = (mhtc_tracker_parse(v, &o->tracker) != MD_OK);
+    } else if (strcmp(a, "--interval") == 0) {
+        bad = rp_num(v, 0.1, 3600.0, &o->interval_s);
+    } else if (strcmp(a, "--channel") == 0) {
+        bad = rp_num(v, 0.0, 1023.0, &x);
+        o->channel = (uint32_t)x;
+    } else if (strcmp(a, "--q-uv") == 0) {
+        bad = rp_num(v, 1e-6, 1e6, &o->q_uv);
+    } else if (strcmp(a, "--init-uv") == 0) {
+        bad = rp_num(v, 1e-6, 1e6, &o->init_uv);
+    } else if (strcmp(a, "--evidence") == 0) {
+        bad = (strcmp(v, "laplace") != 0) && (strcmp(v, "bic") != 0);
+        o->evidence = (strcmp(v, "bic") == 0) ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
+    } else {
+        return RP_NOT_MINE;
+    }
+    return bad != 0;
+}
+
+/* The tracker's own options (--L, --g-max, --warm-jeffreys, --k-miss, --q-move, --n-scan,
+ * --unimodal-ratio, --em-tol): 0, 1 for a bad value, RP_NOT_MINE. */
+static int rp_option_mhtc(rp_options_t *o, const char *a, const char *v)
+{
+    double x = 0.0;
+    int bad = 0;
+    if (strcmp(a, "--L") == 0) {
+        bad = rp_num(v, 1.0, (double)MHTC_L_MAX, &x);
+        o->L = (size_t)x;
+    } else if (strcmp(a, "--g-max") == 0) {
+        bad = rp_num(v, 1.0, (double)MHTC_G_MAX, &x);
+        o->g_max = (size_t)x;
+    } else if (strcmp(a, "--warm-jeffreys") == 0) {
+        bad = rp_num(v, 0.0, 1e300, &o->warm_jeffreys);
+    } else if (strcmp(a, "--k-miss") == 0) {
+        bad = rp_num(v, 1.0, (double)MHTC_HIST_MAX, &o->k_miss) || (fabs(o->k_miss - floor(o->k_miss)) > 0.0);
+    } else if (strcmp(a, "--q-move") == 0) {
+        bad = rp_num(v, 0.0, 1.0, &o->q_move);
+    } else if (strcmp(a, "--n-scan") == 0) {
+        bad = rp_num(v, 0.0, (double)(MHTC_HIST_MAX - 1u), &o->n_scan) || (fabs(o->n_scan - floor(o->n_scan)) > 0.0);
+    } else if (strcmp(a, "--unimodal-ratio") == 0) {
+        bad = rp_num(v, 0.0, 1.0, &o->unimodal_ratio);
+    } else if (strcmp(a, "--em-tol") == 0) {
+        bad = rp_num(v, 1e-15, 1e-2, &o->em_tol);
+    } else {
+        return RP_NOT_MINE;
+    }
+    return bad != 0;
+}
+
+static void rp_defaults(rp_options_t *o)
 {
     memset(o, 0, sizeof *o);
     o->interval_s = 10.0;
@@ -115,11 +177,14 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
     o->n_scan = (double)MHTC_N_SCAN_DEFAULT;
     o->q_move = MHTC_Q_MOVE_PER_UM_DEFAULT;
     o->k_miss = 0.0; /* 0: the tracker's default */
+}
+
+static int rp_parse_args(int argc, char **argv, rp_options_t *o)
+{
+    rp_defaults(o);
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
-        double x = 0.0;
-        int bad = 0;
         if (strcmp(a, "--quiet") == 0) {
             o->quiet = 1;
             continue;
@@ -132,47 +197,14 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
             return rp_usage("missing value after an option");
         }
         ++i;
-        if (strcmp(a, "--recording") == 0) {
-            o->recording = v;
-        } else if (strcmp(a, "--out") == 0) {
-            o->out = v;
-        } else if (strcmp(a, "--tracker") == 0) {
-            bad = (mhtc_tracker_parse(v, &o->tracker) != MD_OK);
-        } else if (strcmp(a, "--interval") == 0) {
-            bad = rp_num(v, 0.1, 3600.0, &o->interval_s);
-        } else if (strcmp(a, "--channel") == 0) {
-            bad = rp_num(v, 0.0, 1023.0, &x);
-            o->channel = (uint32_t)x;
-        } else if (strcmp(a, "--q-uv") == 0) {
-            bad = rp_num(v, 1e-6, 1e6, &o->q_uv);
-        } else if (strcmp(a, "--init-uv") == 0) {
-            bad = rp_num(v, 1e-6, 1e6, &o->init_uv);
-        } else if (strcmp(a, "--L") == 0) {
-            bad = rp_num(v, 1.0, (double)MHTC_L_MAX, &x);
-            o->L = (size_t)x;
-        } else if (strcmp(a, "--g-max") == 0) {
-            bad = rp_num(v, 1.0, (double)MHTC_G_MAX, &x);
-            o->g_max = (size_t)x;
-        } else if (strcmp(a, "--warm-jeffreys") == 0) {
-            bad = rp_num(v, 0.0, 1e300, &o->warm_jeffreys);
-        } else if (strcmp(a, "--k-miss") == 0) {
-            bad = rp_num(v, 1.0, (double)MHTC_HIST_MAX, &o->k_miss) || (fabs(o->k_miss - floor(o->k_miss)) > 0.0);
-        } else if (strcmp(a, "--q-move") == 0) {
-            bad = rp_num(v, 0.0, 1.0, &o->q_move);
-        } else if (strcmp(a, "--n-scan") == 0) {
-            bad = rp_num(v, 0.0, (double)(MHTC_HIST_MAX - 1u), &o->n_scan) ||
-                  (fabs(o->n_scan - floor(o->n_scan)) > 0.0);
-        } else if (strcmp(a, "--unimodal-ratio") == 0) {
-            bad = rp_num(v, 0.0, 1.0, &o->unimodal_ratio);
-        } else if (strcmp(a, "--em-tol") == 0) {
-            bad = rp_num(v, 1e-15, 1e-2, &o->em_tol);
-        } else if (strcmp(a, "--evidence") == 0) {
-            bad = (strcmp(v, "laplace") != 0) && (strcmp(v, "bic") != 0);
-            o->evidence = (strcmp(v, "bic") == 0) ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
-        } else {
+        int r = rp_option_chain(o, a, v);
+        if (r == RP_NOT_MINE) {
+            r = rp_option_mhtc(o, a, v);
+        }
+        if (r == RP_NOT_MINE) {
             return rp_usage("unknown option");
         }
-        if (bad) {
+        if (r != 0) {
             (void)fprintf(stderr, "mhtc-replay: %s %s: invalid value\n", a, v);
             return 2;
         }
@@ -376,23 +408,10 @@ static void rp_write_final_labels(FILE *lab, uint32_t done)
     }
 }
 
-static double rp_now_ms(void)
-{
-    struct timespec ts;
-    (void)clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
-}
-
-static int rp_cmp_double(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return (x < y) ? -1 : ((x > y) ? 1 : 0);
-}
-
 static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size_t spikes)
 {
     const mhtc_stats_t *s = &g_st.stats;
-    qsort(g_step_ms, done, sizeof g_step_ms[0], rp_cmp_double);
+    qsort(g_step_ms, done, sizeof g_step_ms[0], tool_cmp_double);
     (void)fprintf(f, "{\n  \"recording\": \"%s\",\n  \"tracker\": \"%s\",\n  \"channel\": %u,\n", o->recording,
                   mhtc_tracker_name(o->tracker), o->channel);
     (void)fprintf(f,
@@ -580,9 +599,9 @@ static int rp_run(const rp_options_t *o, int16_t *x, FILE *jl, FILE *lab, uint32
         /* electrode travel since the last tracked interval, as the controller measures it */
         const double move = (isfinite(iv->depth_um) && isfinite(tracked_depth)) ? fabs(iv->depth_um - tracked_depth)
                                                                                 : 0.0;
-        const double t0 = rp_now_ms();
+        const double t0 = tool_now_ms();
         const md_status_t st = ic_track(&g_ws, &g_st, move);
-        const double ms = rp_now_ms() - t0;
+        const double ms = tool_now_ms() - t0;
         if (st != MD_OK) {
             (void)fprintf(stderr, "mhtc-replay: interval %u: tracker step failed: %s\n", k, md_status_name(st));
             continue;

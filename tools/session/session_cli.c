@@ -1,6 +1,7 @@
 /// @file session_cli.c
 /// Command line of microdrive-session (docs/session.md).
 #include <errno.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -159,72 +160,149 @@ int session_apply_params(md_params_t *p, const session_opts_t *o, char *msg, siz
     return 0;
 }
 
-static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen, bool *pace_given,
-                     bool *idle_given)
+/* The options that take a number: 0, -1 for a bad value, 1 if opt is none of them. */
+static int cli_number(session_opts_t *o, const char *opt, const char *val, bool *pace_given, bool *idle_given)
 {
     uint64_t u = 0u;
-    if (strcmp(opt, "--scenario") == 0) {
-        o->scenario = val;
-    } else if (strcmp(opt, "--seed") == 0) {
+    if (strcmp(opt, "--seed") == 0) {
         if (parse_u64(val, &o->seed) != 0) {
-            goto bad;
+            return -1;
         }
         o->seed_given = true;
-    } else if (strcmp(opt, "--bus") == 0) {
-        o->bus = val;
-    } else if (strcmp(opt, "--out") == 0) {
-        o->out = val;
     } else if (strcmp(opt, "--cycles") == 0) {
         if (parse_u64(val, &u) != 0 || u == 0u || u > 65535u) {
-            goto bad;
+            return -1;
         }
         o->cycles = (uint32_t)u;
     } else if (strcmp(opt, "--duration-s") == 0) {
         if (parse_double(val, &o->duration_s) != 0 || !(o->duration_s > 0.0)) {
-            goto bad;
+            return -1;
         }
     } else if (strcmp(opt, "--idle-s") == 0) {
         if (parse_double(val, &o->idle_s) != 0 || !(o->idle_s > 0.0)) {
-            goto bad;
+            return -1;
         }
         *idle_given = true;
     } else if (strcmp(opt, "--pace") == 0) {
         if (parse_u64(val, &u) != 0 || u > 10000000u) {
-            goto bad;
+            return -1;
         }
         o->pace_fps = (uint32_t)u;
         *pace_given = true;
-    } else if (strcmp(opt, "--bin-dir") == 0) {
-        o->bin_dir = val;
-    } else if (strcmp(opt, "--python") == 0) {
-        o->python = val;
-    } else if (strcmp(opt, "--param") == 0) {
-        return cli_param(o, val, msg, msglen);
-    } else if (strcmp(opt, "--controller") == 0) {
+    } else if (strcmp(opt, "--icount-shift") == 0) {
+        if (parse_u64(val, &u) != 0 || u > 10u) {
+            return -1;
+        }
+        o->icount_shift = (uint32_t)u;
+    } else {
+        return 1;
+    }
+    return 0;
+}
+
+/* The options that take a text: 0, -1 for a bad value, 1 if opt is none of them. */
+static int cli_text(session_opts_t *o, const char *opt, const char *val)
+{
+    if (strcmp(opt, "--controller") == 0) {
         if (strcmp(val, "host") == 0) {
             o->controller = SESSION_CTRL_HOST;
         } else if (strcmp(val, "m7") == 0) {
             o->controller = SESSION_CTRL_M7;
         } else {
-            goto bad;
+            return -1;
         }
-    } else if (strcmp(opt, "--m7-image") == 0) {
-        o->m7_image = val;
-    } else if (strcmp(opt, "--qemu") == 0) {
-        o->qemu = val;
-    } else if (strcmp(opt, "--icount-shift") == 0) {
-        if (parse_u64(val, &u) != 0 || u > 10u) {
-            goto bad;
+        return 0;
+    }
+    static const struct {
+        const char *opt;
+        size_t off;
+    } text[] = {
+        {"--scenario", offsetof(session_opts_t, scenario)}, {"--bus", offsetof(session_opts_t, bus)},
+        {"--out", offsetof(session_opts_t, out)},           {"--bin-dir", offsetof(session_opts_t, bin_dir)},
+        {"--python", offsetof(session_opts_t, python)},     {"--m7-image", offsetof(session_opts_t, m7_image)},
+        {"--qemu", offsetof(session_opts_t, qemu)},
+    };
+    for (size_t i = 0u; i < sizeof text / sizeof text[0]; ++i) {
+        if (strcmp(opt, text[i].opt) == 0) {
+            memcpy((char *)o + text[i].off, &val, sizeof val);
+            return 0;
         }
-        o->icount_shift = (uint32_t)u;
-    } else {
+    }
+    return 1;
+}
+
+static int cli_value(session_opts_t *o, const char *opt, const char *val, char *msg, size_t msglen, bool *pace_given,
+                     bool *idle_given)
+{
+    if (strcmp(opt, "--param") == 0) {
+        return cli_param(o, val, msg, msglen);
+    }
+    int r = cli_text(o, opt, val);
+    if (r == 1) {
+        r = cli_number(o, opt, val, pace_given, idle_given);
+    }
+    if (r == 1) {
         (void)snprintf(msg, msglen, "unknown option '%s'", opt);
         return -1;
     }
+    if (r < 0) {
+        (void)snprintf(msg, msglen, "%s: bad value '%s'", opt, val);
+        return -1;
+    }
     return 0;
-bad:
-    (void)snprintf(msg, msglen, "%s: bad value '%s'", opt, val);
-    return -1;
+}
+
+/* A flag without a value: true if `a` is one (set in *o). */
+static bool cli_flag(session_opts_t *o, const char *a)
+{
+    static const struct {
+        const char *flag;
+        size_t off;
+        bool value;
+    } flags[] = {
+        {"--help", offsetof(session_opts_t, help), true},
+        {"-h", offsetof(session_opts_t, help), true},
+        {"--no-score", offsetof(session_opts_t, no_score), true},
+        {"--quiet", offsetof(session_opts_t, quiet), true},
+        {"--candump-samples", offsetof(session_opts_t, candump_samples), true},
+        {"--no-sample-log", offsetof(session_opts_t, candump_samples), false}, /* the default; older command lines */
+        {"--no-recording", offsetof(session_opts_t, no_recording), true},
+        {"--no-lcm", offsetof(session_opts_t, no_lcm), true},
+        {"--no-plots", offsetof(session_opts_t, no_plots), true},
+    };
+    for (size_t i = 0u; i < sizeof flags / sizeof flags[0]; ++i) {
+        if (strcmp(a, flags[i].flag) == 0) {
+            memcpy((char *)o + flags[i].off, &flags[i].value, sizeof(bool));
+            return true;
+        }
+    }
+    return false;
+}
+
+/* The Cortex-M7 controller's defaults for what the command line left unset, and its bus rule. */
+static int cli_m7_defaults(session_opts_t *o, bool pace_given, bool idle_given, char *msg, size_t msglen)
+{
+    if (!pace_given) {
+        o->pace_fps = SESSION_M7_PACE_FPS;
+    }
+    if (!idle_given) {
+        o->idle_s = SESSION_M7_IDLE_S;
+    }
+    bool set = false;
+    for (uint32_t i = 0u; i < o->n_params; ++i) {
+        set = set || strncmp(o->params[i].arg, "heartbeat_timeout_ms=", 21) == 0;
+    }
+    /* first, so that a later --param of the same name would still win */
+    if (!set && cli_param(o, SESSION_M7_HEARTBEAT_TIMEOUT, msg, msglen) != 0) {
+        return -1;
+    }
+    if (strcmp(o->bus, "inproc") == 0 || strncmp(o->bus, "inproc:", 7) == 0) {
+        (void)snprintf(msg, msglen,
+                       "--controller m7 needs a socket bus (udp, vcan0, auto): QEMU and the bridge are "
+                       "processes");
+        return -1;
+    }
+    return 0;
 }
 
 int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg, size_t msglen)
@@ -239,23 +317,10 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
     bool idle_given = false;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            o->help = true;
-            return 0;
-        } else if (strcmp(a, "--no-score") == 0) {
-            o->no_score = true;
-        } else if (strcmp(a, "--quiet") == 0) {
-            o->quiet = true;
-        } else if (strcmp(a, "--candump-samples") == 0) {
-            o->candump_samples = true;
-        } else if (strcmp(a, "--no-sample-log") == 0) {
-            o->candump_samples = false; /* the default; kept so older command lines still run */
-        } else if (strcmp(a, "--no-recording") == 0) {
-            o->no_recording = true;
-        } else if (strcmp(a, "--no-lcm") == 0) {
-            o->no_lcm = true;
-        } else if (strcmp(a, "--no-plots") == 0) {
-            o->no_plots = true;
+        if (cli_flag(o, a)) {
+            if (o->help) {
+                return 0;
+            }
         } else if (i + 1 >= argc || strncmp(a, "--", 2) != 0) {
             (void)snprintf(msg, msglen, "'%s' needs a value or is not an option", a);
             return -1;
@@ -267,26 +332,7 @@ int session_cli_parse(session_opts_t *o, int argc, char *const argv[], char *msg
         (void)snprintf(msg, msglen, "--scenario and --out are required");
         return -1;
     }
-    if (o->controller == SESSION_CTRL_M7 && !pace_given) {
-        o->pace_fps = SESSION_M7_PACE_FPS;
-    }
-    if (o->controller == SESSION_CTRL_M7 && !idle_given) {
-        o->idle_s = SESSION_M7_IDLE_S;
-    }
-    if (o->controller == SESSION_CTRL_M7) {
-        bool set = false;
-        for (uint32_t i = 0u; i < o->n_params; ++i) {
-            set = set || strncmp(o->params[i].arg, "heartbeat_timeout_ms=", 21) == 0;
-        }
-        /* first, so that a later --param of the same name would still win */
-        if (!set && cli_param(o, SESSION_M7_HEARTBEAT_TIMEOUT, msg, msglen) != 0) {
-            return -1;
-        }
-    }
-    if (o->controller == SESSION_CTRL_M7 && (strcmp(o->bus, "inproc") == 0 || strncmp(o->bus, "inproc:", 7) == 0)) {
-        (void)snprintf(msg, msglen,
-                       "--controller m7 needs a socket bus (udp, vcan0, auto): QEMU and the bridge are "
-                       "processes");
+    if (o->controller == SESSION_CTRL_M7 && cli_m7_defaults(o, pace_given, idle_given, msg, msglen) != 0) {
         return -1;
     }
     if (o->cycles > 0u && o->duration_s > 0.0) {

@@ -265,21 +265,16 @@ static pid_t start_host_controller(const session_opts_t *o, const char *bus, con
 /* Unix sockets of the M7's UARTs (short paths: sun_path has 108 bytes). */
 static char g_uart_dir[64], g_uart_sock[M7_UARTS][96];
 
-/* The Cortex-M7 image under QEMU (semihosting console into fw_log), its five
- * UARTs on Unix sockets that QEMU serves, and the bridge from those sockets to
- * the bus (DIR/bridge.log). QEMU waits for the bridge before the image starts. */
-static pid_t start_m7_controller(const session_opts_t *o, const char *bus, const char *fw_log, pid_t *bridge)
+/* The image: --m7-image, else $MD_M7_IMAGE, else the cortex-m7 build next to this one. -1 if unreadable. */
+static int m7_image_path(const session_opts_t *o, char *image, size_t size)
 {
-    static char image[4096], qemu[4096], mdcan[4096], bridge_log[4096], bus_arg[64], icount[32];
-    static char chardev[M7_UARTS][512], serial[M7_UARTS][16];
-    static char semi[4096];
-    const char *env_image = getenv("MD_M7_IMAGE"), *env_qemu = getenv("MD_QEMU");
+    const char *env_image = getenv("MD_M7_IMAGE");
     if (o->m7_image != NULL) {
-        (void)snprintf(image, sizeof image, "%s", o->m7_image);
+        (void)snprintf(image, size, "%s", o->m7_image);
     } else if (env_image != NULL && env_image[0] != '\0') {
-        (void)snprintf(image, sizeof image, "%s", env_image);
+        (void)snprintf(image, size, "%s", env_image);
     } else {
-        (void)snprintf(image, sizeof image, "%s/../../cortex-m7/bin/microdrive-fw-m7.elf", o->bin_dir);
+        (void)snprintf(image, size, "%s/../../cortex-m7/bin/microdrive-fw-m7.elf", o->bin_dir);
     }
     if (access(image, R_OK) != 0) {
         fprintf(stderr,
@@ -288,9 +283,31 @@ static pid_t start_m7_controller(const session_opts_t *o, const char *bus, const
                 image);
         return -1;
     }
-    (void)snprintf(qemu, sizeof qemu, "%s",
-                   o->qemu != NULL ? o->qemu
-                                   : ((env_qemu != NULL && env_qemu[0] != '\0') ? env_qemu : "qemu-system-arm"));
+    return 0;
+}
+
+/* QEMU's -semihosting-config: the image's command line as arg=WORD (QEMU option syntax: no commas in a
+ * word). -1 if a --param has a comma or the line does not fit. */
+static int m7_semihosting(const session_opts_t *o, char *semi, size_t size)
+{
+    int at = snprintf(semi, size, "enable=on,target=native,arg=microdrive-fw-m7,arg=--auto-start");
+    for (uint32_t i = 0u; i < o->n_params && i < SESSION_MAX_PARAMS && at > 0 && (size_t)at < size; ++i) {
+        if (strchr(o->params[i].arg, ',') != NULL) {
+            fprintf(stderr, "microdrive-session: --param %s: no commas with --controller m7\n", o->params[i].arg);
+            return -1;
+        }
+        at += snprintf(semi + at, size - (size_t)at, ",arg=--param,arg=%s", o->params[i].arg);
+    }
+    if (at <= 0 || (size_t)at >= size) {
+        fprintf(stderr, "microdrive-session: the image's command line is too long\n");
+        return -1;
+    }
+    return 0;
+}
+
+/* A fresh folder for the UART sockets and QEMU's -chardev/-serial words for each UART. -1 on failure. */
+static int m7_uarts(char chardev[M7_UARTS][512], char serial[M7_UARTS][16])
+{
     (void)snprintf(g_uart_dir, sizeof g_uart_dir, "/tmp/md-pil-XXXXXX");
     if (mkdtemp(g_uart_dir) == NULL) {
         fprintf(stderr, "microdrive-session: mkdtemp: %s\n", strerror(errno));
@@ -299,22 +316,45 @@ static pid_t start_m7_controller(const session_opts_t *o, const char *bus, const
     }
     for (int j = 0; j < M7_UARTS; ++j) {
         (void)snprintf(g_uart_sock[j], sizeof g_uart_sock[j], "%s/uart%d.sock", g_uart_dir, j);
-        (void)snprintf(chardev[j], sizeof chardev[j], "socket,id=uart%d,path=%.100s,server=on,wait=on", j,
-                       g_uart_sock[j]);
-        (void)snprintf(serial[j], sizeof serial[j], "chardev:uart%d", j);
+        (void)snprintf(chardev[j], 512, "socket,id=uart%d,path=%.100s,server=on,wait=on", j, g_uart_sock[j]);
+        (void)snprintf(serial[j], 16, "chardev:uart%d", j);
+    }
+    return 0;
+}
+
+/* mdcan bridge from the UART sockets to the bus, its log in DIR/bridge.log. */
+static pid_t m7_start_bridge(const session_opts_t *o, const char *bus)
+{
+    static char mdcan[4096], bridge_log[4096], bus_arg[64];
+    (void)snprintf(mdcan, sizeof mdcan, "%s/mdcan", o->bin_dir);
+    (void)snprintf(bus_arg, sizeof bus_arg, "%s", bus);
+    (void)snprintf(bridge_log, sizeof bridge_log, "%s/bridge.log", o->out);
+    char *const bridge_argv[] = {mdcan,      "bridge",       "--serial",  g_uart_sock[0], "--serial", g_uart_sock[1],
+                                 "--serial", g_uart_sock[2], "--serial",  g_uart_sock[3], "--serial", g_uart_sock[4],
+                                 "--bus",    bus_arg,        "--wait-ms", "10000",        NULL};
+    return spawn_logged(bridge_argv, bridge_log);
+}
+
+/* The Cortex-M7 image under QEMU (semihosting console into fw_log), its five
+ * UARTs on Unix sockets that QEMU serves, and the bridge from those sockets to
+ * the bus (DIR/bridge.log). QEMU waits for the bridge before the image starts. */
+static pid_t start_m7_controller(const session_opts_t *o, const char *bus, const char *fw_log, pid_t *bridge)
+{
+    static char image[4096], qemu[4096], icount[32];
+    static char chardev[M7_UARTS][512], serial[M7_UARTS][16];
+    static char semi[4096];
+    const char *env_qemu = getenv("MD_QEMU");
+    if (m7_image_path(o, image, sizeof image) != 0) {
+        return -1;
+    }
+    (void)snprintf(qemu, sizeof qemu, "%s",
+                   o->qemu != NULL ? o->qemu
+                                   : ((env_qemu != NULL && env_qemu[0] != '\0') ? env_qemu : "qemu-system-arm"));
+    if (m7_uarts(chardev, serial) != 0) {
+        return -1;
     }
     (void)snprintf(icount, sizeof icount, "shift=%u", (unsigned)o->icount_shift);
-    /* the image's command line: semihosting arg=WORD (QEMU option syntax: no commas in a word) */
-    int at = snprintf(semi, sizeof semi, "enable=on,target=native,arg=microdrive-fw-m7,arg=--auto-start");
-    for (uint32_t i = 0u; i < o->n_params && i < SESSION_MAX_PARAMS && at > 0 && (size_t)at < sizeof semi; ++i) {
-        if (strchr(o->params[i].arg, ',') != NULL) {
-            fprintf(stderr, "microdrive-session: --param %s: no commas with --controller m7\n", o->params[i].arg);
-            return -1;
-        }
-        at += snprintf(semi + at, sizeof semi - (size_t)at, ",arg=--param,arg=%s", o->params[i].arg);
-    }
-    if (at <= 0 || (size_t)at >= sizeof semi) {
-        fprintf(stderr, "microdrive-session: the image's command line is too long\n");
+    if (m7_semihosting(o, semi, sizeof semi) != 0) {
         return -1;
     }
     char *const qemu_argv[] = {qemu,       "-M",       "mps2-an500", "-display", "none",     "-monitor",
@@ -330,13 +370,7 @@ static pid_t start_m7_controller(const session_opts_t *o, const char *bus, const
     if (pid < 0) {
         return -1;
     }
-    (void)snprintf(mdcan, sizeof mdcan, "%s/mdcan", o->bin_dir);
-    (void)snprintf(bus_arg, sizeof bus_arg, "%s", bus);
-    (void)snprintf(bridge_log, sizeof bridge_log, "%s/bridge.log", o->out);
-    char *const bridge_argv[] = {mdcan,      "bridge",       "--serial",  g_uart_sock[0], "--serial", g_uart_sock[1],
-                                 "--serial", g_uart_sock[2], "--serial",  g_uart_sock[3], "--serial", g_uart_sock[4],
-                                 "--bus",    bus_arg,        "--wait-ms", "10000",        NULL};
-    *bridge = spawn_logged(bridge_argv, bridge_log);
+    *bridge = m7_start_bridge(o, bus);
     return pid;
 }
 

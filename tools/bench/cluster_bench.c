@@ -8,10 +8,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "cluster/cluster.h"
 #include "numeric/md_rng.h"
+#include "tool_time.h"
 
 #define BENCH_SPIKES 300u
 #define BENCH_RUNS_DEFAULT 51u
@@ -48,20 +48,6 @@ static void make_interval(em_target_t *tg)
     }
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    const double x = *(const double *)a;
-    const double y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static double now_ms(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return 1e3 * (double)t.tv_sec + 1e-6 * (double)t.tv_nsec;
-}
-
 static const char *only; /* configuration filter from argv[2], or NULL */
 
 static void bench(const char *name, cluster_method_t method, cluster_evidence_t ev, const cluster_input_t *in,
@@ -75,11 +61,11 @@ static void bench(const char *name, cluster_method_t method, cluster_evidence_t 
     cfg.evidence = ev;
     md_status_t st = MD_OK;
     for (unsigned r = 0u; r < runs; ++r) {
-        const double t0 = now_ms();
+        const double t0 = tool_now_ms();
         st = cluster_fit_models(&cfg, in, &ws, &res);
-        times_ms[r] = now_ms() - t0;
+        times_ms[r] = tool_now_ms() - t0;
     }
-    qsort(times_ms, runs, sizeof times_ms[0], cmp_double);
+    qsort(times_ms, runs, sizeof times_ms[0], tool_cmp_double);
     unsigned iters = 0u;
     for (size_t g = 0u; g < EM_G_MAX; ++g) {
         iters += res.model[g].fit.iterations;

@@ -8,11 +8,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "numeric/md_rng.h"
 #include "features/pca.h"
 #include "metrics/quality.h"
+#include "tool_time.h"
 #include "tracking/mhtc.h"
 
 #define B_DW 35u
@@ -68,17 +68,45 @@ static void b_interval(md_rng_t *rng, size_t k)
     }
 }
 
-static double b_now_ms(void)
+/* [--bic] [--tol T] [--L N] from argv[2] on into *cfg; an unknown option sets an L mhtc_config_check refuses. */
+static void b_parse_options(int argc, char **argv, mhtc_config_t *cfg, int *bic)
 {
-    struct timespec ts;
-    (void)clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+    for (int i = 2; i < argc; ++i) {
+        if (strcmp(argv[i], "--bic") == 0) {
+            *bic = 1;
+        } else if ((strcmp(argv[i], "--tol") == 0) && (i + 1 < argc)) {
+            cfg->em.tol = strtod(argv[++i], NULL);
+        } else if ((strcmp(argv[i], "--L") == 0) && (i + 1 < argc)) {
+            cfg->L = (size_t)strtoul(argv[++i], NULL, 10);
+        } else {
+            cfg->L = 0u; /* rejected by the caller */
+        }
+    }
 }
 
-static int b_cmp(const void *a, const void *b)
+/* The warm-up intervals, then `steps` timed MHTC steps (g_ms); the model hypotheses of the timed steps in
+ * *models. 0, or 1 after a failed step. */
+static int b_run(size_t steps, size_t *models)
 {
-    const double x = *(const double *)a, y = *(const double *)b;
-    return (x < y) ? -1 : ((x > y) ? 1 : 0);
+    md_rng_t rng;
+    md_rng_seed(&rng, 2024u);
+    *models = 0u;
+    for (size_t k = 0u; k < B_WARMUP + steps; ++k) {
+        b_interval(&rng, k);
+        const mhtc_input_t in = {g_y, B_N, &g_wave[0][0], B_DW, &g_basis, g_xi, 10.0, NULL, 0.0, 0.0};
+        const double t0 = tool_now_ms();
+        const md_status_t st = mhtc_update(&g_st, &in, &g_ws, &g_out);
+        const double dt = tool_now_ms() - t0;
+        if (st != MD_OK) {
+            (void)fprintf(stderr, "mhtc-bench: step %zu failed: %s\n", k, md_status_name(st));
+            return 1;
+        }
+        if (k >= B_WARMUP) {
+            g_ms[k - B_WARMUP] = dt;
+            *models += g_out.models_fitted;
+        }
+    }
+    return 0;
 }
 
 int main(int argc, char **argv)
@@ -87,17 +115,7 @@ int main(int argc, char **argv)
     int bic = 0;
     mhtc_config_t cfg;
     mhtc_config_default(&cfg, MHTC_TRACKER_MHTC);
-    for (int i = 2; i < argc; ++i) {
-        if (strcmp(argv[i], "--bic") == 0) {
-            bic = 1;
-        } else if ((strcmp(argv[i], "--tol") == 0) && (i + 1 < argc)) {
-            cfg.em.tol = strtod(argv[++i], NULL);
-        } else if ((strcmp(argv[i], "--L") == 0) && (i + 1 < argc)) {
-            cfg.L = (size_t)strtoul(argv[++i], NULL, 10);
-        } else {
-            cfg.L = 0u; /* rejected below */
-        }
-    }
+    b_parse_options(argc, argv, &cfg, &bic);
     if ((steps == 0u) || (steps > 1000u) || (mhtc_config_check(&cfg) != MD_OK)) {
         (void)fprintf(stderr, "usage: mhtc-bench [STEPS 1..1000] [--bic] [--tol T > 0] [--L 1..%u]\n",
                       (unsigned)MHTC_L_MAX);
@@ -106,28 +124,11 @@ int main(int argc, char **argv)
     cfg.q_process = 25.0;
     cfg.init_var = 25.0;
     cfg.evidence = bic ? CLUSTER_EVIDENCE_BIC : CLUSTER_EVIDENCE_LAPLACE;
-    if (mhtc_init(&g_st, &cfg) != MD_OK) {
+    size_t models = 0u;
+    if ((mhtc_init(&g_st, &cfg) != MD_OK) || (b_run(steps, &models) != 0)) {
         return 1;
     }
-    md_rng_t rng;
-    md_rng_seed(&rng, 2024u);
-    size_t models = 0u;
-    for (size_t k = 0u; k < B_WARMUP + steps; ++k) {
-        b_interval(&rng, k);
-        const mhtc_input_t in = {g_y, B_N, &g_wave[0][0], B_DW, &g_basis, g_xi, 10.0, NULL, 0.0, 0.0};
-        const double t0 = b_now_ms();
-        const md_status_t st = mhtc_update(&g_st, &in, &g_ws, &g_out);
-        const double dt = b_now_ms() - t0;
-        if (st != MD_OK) {
-            (void)fprintf(stderr, "mhtc-bench: step %zu failed: %s\n", k, md_status_name(st));
-            return 1;
-        }
-        if (k >= B_WARMUP) {
-            g_ms[k - B_WARMUP] = dt;
-            models += g_out.models_fitted;
-        }
-    }
-    qsort(g_ms, steps, sizeof g_ms[0], b_cmp);
+    qsort(g_ms, steps, sizeof g_ms[0], tool_cmp_double);
     printf("L %zu, EM tol %g, steps %zu, evidence %s: median %.2f ms, min %.2f ms, max %.2f ms; model hypotheses per "
            "step %.1f; "
            "hypotheses %zu, tracks (leading) %zu\n",
