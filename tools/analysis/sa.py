@@ -373,7 +373,7 @@ def write_baseline(counts, scope_files, tools):
             fh.write(f"{k} {kept[k]}\n")
 
 
-def main():
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--build", default=os.path.join(ROOT, "build", "dev"), help="configured build dir")
     ap.add_argument("--only", action="append", choices=TOOLS, help="run only this tool (repeatable)")
@@ -382,16 +382,11 @@ def main():
     ap.add_argument("--update-baseline", action="store_true", help="rewrite the baseline with today's findings")
     ap.add_argument("--clang-tidy-arg", action="append", default=[], help="extra clang-tidy compiler arg")
     ap.add_argument("--verbose", "-v", action="store_true", help="print every finding")
-    a = ap.parse_args()
-    tools = a.only or list(TOOLS)
-    units = load_units(os.path.abspath(a.build), a.files)
-    if not units:
-        sys.exit("static-analysis: no firmware units in the compile database")
-    scope = {u["file"] for u in units}
-    work = os.path.join(os.path.abspath(a.build), "static-analysis")
-    os.makedirs(work, exist_ok=True)
-    print(f"static-analysis: {len(units)} units from {rel(a.build)}, tools: {', '.join(tools)}")
+    return ap.parse_args()
 
+
+def run_tools(tools, units, work, a):
+    """Every tool's findings over the units (MISRA deviations dropped), and whether recursion was found."""
     dev = load_deviations()
     findings, failed = [], False
     for tool in tools:
@@ -411,21 +406,19 @@ def main():
         # Findings in headers count when the header belongs to the analysed scope.
         findings += got
         print(f"  {tool}: {len(got)} findings ({time.monotonic() - t0:.0f} s)")
+    return findings, failed
 
-    counts = collections.Counter(key_of(f) for f in findings)
-    scope_all = scope | {f.file for f in findings}
-    if a.update_baseline:
-        write_baseline(dict(counts), scope_all, set(tools))
-        print(f"static-analysis: baseline rewritten ({sum(counts.values())} findings, {len(counts)} keys)")
-        return 1 if failed else 0
 
+def against_baseline(findings, counts, tools, scope_all, verbose):
+    """Prints what is new over the baseline (and what is gone from it); True if anything is new."""
+    failed = False
     base = {k: v for k, v in load_baseline().items()
             if k.split("|")[0] in tools and k.split("|")[2] in scope_all}
     new_keys = {k: c - base.get(k, 0) for k, c in counts.items() if c > base.get(k, 0)}
     by_key = collections.defaultdict(list)
     for f in findings:
         by_key[key_of(f)].append(f)
-    if a.verbose:
+    if verbose:
         for f in sorted(findings, key=lambda f: (f.file, f.line)):
             print(f"  {f.file}:{f.line}: [{f.tool} {f.rule}] {f.message}")
     for k, extra in sorted(new_keys.items()):
@@ -439,11 +432,33 @@ def main():
               f"shrink the baseline with --update-baseline:")
         for k in sorted(gone):
             print(f"    fixed: {k}")
-    total = sum(counts.values())
-    print(f"static-analysis: {total} findings, {sum(base.values())} baselined in scope, "
-          f"{sum(new_keys.values())} new -> {'FAIL' if failed else 'ok'}")
-    return 1 if failed else 0
+    return failed, sum(base.values()), sum(new_keys.values())
 
+
+def main():
+    a = parse_args()
+    tools = a.only or list(TOOLS)
+    units = load_units(os.path.abspath(a.build), a.files)
+    if not units:
+        sys.exit("static-analysis: no firmware units in the compile database")
+    scope = {u["file"] for u in units}
+    work = os.path.join(os.path.abspath(a.build), "static-analysis")
+    os.makedirs(work, exist_ok=True)
+    print(f"static-analysis: {len(units)} units from {rel(a.build)}, tools: {', '.join(tools)}")
+    findings, failed = run_tools(tools, units, work, a)
+
+    counts = collections.Counter(key_of(f) for f in findings)
+    scope_all = scope | {f.file for f in findings}
+    if a.update_baseline:
+        write_baseline(dict(counts), scope_all, set(tools))
+        print(f"static-analysis: baseline rewritten ({sum(counts.values())} findings, {len(counts)} keys)")
+        return 1 if failed else 0
+    new_found, n_base, n_new = against_baseline(findings, counts, tools, scope_all, a.verbose)
+    failed = failed or new_found
+    total = sum(counts.values())
+    print(f"static-analysis: {total} findings, {n_base} baselined in scope, "
+          f"{n_new} new -> {'FAIL' if failed else 'ok'}")
+    return 1 if failed else 0
 
 if __name__ == "__main__":
     sys.exit(main())

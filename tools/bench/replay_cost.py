@@ -127,7 +127,7 @@ def ratio_summary(pairs):
             "within_10pct": sum(1 for x in r if abs(x - 1.0) <= 0.10)}
 
 
-def main(argv=None):
+def parse_args(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("session")
     ap.add_argument("--recording", default="recording.json", help="sidecar in SESSION_DIR (default recording.json)")
@@ -138,8 +138,95 @@ def main(argv=None):
     ap.add_argument("--json", help="write the per-interval table and the summary here")
     ap.add_argument("--timeout", type=float, default=3600.0)
     ap.add_argument("--quiet", action="store_true", help="no per-interval lines")
-    args = ap.parse_args(argv)
+    return ap.parse_args(argv)
 
+
+def compare(ivs, rep, status):
+    """Per interval processed by both (the replay and the session): the replay's stage counts next to the
+    session's CycleCost and ProcessCost; and the cycles whose facts differ."""
+    rows, mismatch = [], []
+    for iv in ivs:
+        c = int(iv.get("cycle", -1))
+        r, s = rep.get(c), status.get(c)
+        if r is None or s is None or s["flags"] & 0x3 or r["status"] != "OK":
+            continue                                      # not processed by one of the two
+        same = all(r[k] == s[k] for k in ("spikes", "dominant", "tracks", "hyp", "snr_bits"))
+        if not same:
+            mismatch.append(c)
+        st = r["stages"]
+        cycle = sum(st.values())
+        process = cycle - st["push"]
+        rows.append({"cycle": c, "interval_id": r["id"], "same_facts": same, "spikes": s["spikes"],
+                     "hyp": s["hyp"], "models": r["models"], "replay": st, "replay_cycle": cycle,
+                     "replay_process": process, "session_cycle": s["cycle_cost"],
+                     "session_process": s["process_cost"],
+                     "session_detect": s["cycle_cost"] - s["process_cost"]})
+    return rows, mismatch
+
+
+def print_rows(rows):
+    """One line per interval: the replay's stages, the session's costs, their ratios."""
+    print("cycle  id  spikes hyp | replay: push      end      pca       mhtc  quality control    cycle | "
+          "session: cycle   process | ratio cycle process detect")
+    for x in rows:
+        st = x["replay"]
+        print(f"{x['cycle']:5d} {x['interval_id']:3d} {x['spikes']:6d} {x['hyp']:3d} | "
+              f"{st['push']:11d} {st['end']:8d} {st['pca']:8d} {st['mhtc']:10d} {st['quality']:8d} "
+              f"{st['control']:7d} {x['replay_cycle']:10d} | {x['session_cycle']:10d} {x['session_process']:10d} | "
+              f"{x['session_cycle'] / x['replay_cycle']:.4f} {x['session_process'] / x['replay_process']:.4f} "
+              f"{x['session_detect'] / st['push']:.4f}{'' if x['same_facts'] else '  FACTS DIFFER'}")
+
+
+def summarise(rows, cal, mismatch):
+    """Medians, extremes and ratios of the two counts over the intervals."""
+    return {
+        "calibration": cal,
+        "intervals": len(rows),
+        "facts_differ": mismatch,
+        "replay_cycle": {"median": median([x["replay_cycle"] for x in rows]), "max": max(x["replay_cycle"] for x in rows)},
+        "replay_process": {"median": median([x["replay_process"] for x in rows]),
+                           "max": max(x["replay_process"] for x in rows)},
+        "replay_push": {"median": median([x["replay"]["push"] for x in rows])},
+        "session_cycle": {"median": median([x["session_cycle"] for x in rows]), "max": max(x["session_cycle"] for x in rows)},
+        "session_process": {"median": median([x["session_process"] for x in rows]),
+                            "max": max(x["session_process"] for x in rows)},
+        "session_detect": {"median": median([x["session_detect"] for x in rows])},
+        "ratio_cycle": ratio_summary([(x["replay_cycle"], x["session_cycle"]) for x in rows]),
+        "ratio_process": ratio_summary([(x["replay_process"], x["session_process"]) for x in rows]),
+        "ratio_detect": ratio_summary([(x["replay"]["push"], x["session_detect"]) for x in rows]),
+        "diff_cycle": {"median": median([x["session_cycle"] - x["replay_cycle"] for x in rows])},
+        "diff_process": {"median": median([x["session_process"] - x["replay_process"] for x in rows]),
+                         "min": min(x["session_process"] - x["replay_process"] for x in rows),
+                         "max": max(x["session_process"] - x["replay_process"] for x in rows)},
+        "diff_detect": {"median": median([x["session_detect"] - x["replay"]["push"] for x in rows]),
+                        "min": min(x["session_detect"] - x["replay"]["push"] for x in rows),
+                        "max": max(x["session_detect"] - x["replay"]["push"] for x in rows)},
+    }
+
+
+def print_summary(summary, rows, cal, mismatch):
+    """The verdict on the facts, then the medians and ratios."""
+    m = lambda v: "-" if v is None else f"{v / 1e6:.2f} M"  # noqa: E731
+    print(f"replay_cost: {len(rows)} intervals processed by both; calibration {cal}; "
+          f"facts (spikes, dominant, tracks, hypotheses, SNR bits) "
+          f"{'identical in every interval' if not mismatch else 'DIFFER in cycles ' + str(mismatch[:10])}")
+    print(f"replay_cost: cycle   replay median {m(summary['replay_cycle']['median'])} max {m(summary['replay_cycle']['max'])}"
+          f" | session median {m(summary['session_cycle']['median'])} max {m(summary['session_cycle']['max'])}")
+    print(f"replay_cost: process replay median {m(summary['replay_process']['median'])} "
+          f"max {m(summary['replay_process']['max'])} | session median {m(summary['session_process']['median'])} "
+          f"max {m(summary['session_process']['max'])}")
+    for k in ("cycle", "process", "detect"):
+        r = summary[f"ratio_{k}"]
+        print(f"replay_cost: session/replay {k:7s}: median {r['median']:.4f}, range {r['min']:.4f}..{r['max']:.4f}, "
+              f"{r['within_10pct']} of {r['n']} within 10 %")
+    print(f"replay_cost: session - replay: process median {summary['diff_process']['median']:.0f} "
+          f"(range {summary['diff_process']['min']}..{summary['diff_process']['max']}), detection median "
+          f"{summary['diff_detect']['median']:.0f} (range {summary['diff_detect']['min']}..{summary['diff_detect']['max']}) "
+          f"instructions")
+
+
+def main(argv=None):
+    args = parse_args(argv)
     rec_json = os.path.join(args.session, args.recording)
     try:
         with open(rec_json) as f:
@@ -164,76 +251,14 @@ def main(argv=None):
     cal, rep = parse_replay(text)
     status = read_status(os.path.join(args.session, "candump.log"), electrode)
 
-    rows, mismatch = [], []
-    for iv in ivs:
-        c = int(iv.get("cycle", -1))
-        r, s = rep.get(c), status.get(c)
-        if r is None or s is None or s["flags"] & 0x3 or r["status"] != "OK":
-            continue                                      # not processed by one of the two
-        same = all(r[k] == s[k] for k in ("spikes", "dominant", "tracks", "hyp", "snr_bits"))
-        if not same:
-            mismatch.append(c)
-        st = r["stages"]
-        cycle = sum(st.values())
-        process = cycle - st["push"]
-        rows.append({"cycle": c, "interval_id": r["id"], "same_facts": same, "spikes": s["spikes"],
-                     "hyp": s["hyp"], "models": r["models"], "replay": st, "replay_cycle": cycle,
-                     "replay_process": process, "session_cycle": s["cycle_cost"],
-                     "session_process": s["process_cost"],
-                     "session_detect": s["cycle_cost"] - s["process_cost"]})
+    rows, mismatch = compare(ivs, rep, status)
     if not rows:
         print("replay_cost: no interval processed by both the replay and the session", file=sys.stderr)
         return 1
     if not args.quiet:
-        print("cycle  id  spikes hyp | replay: push      end      pca       mhtc  quality control    cycle | "
-              "session: cycle   process | ratio cycle process detect")
-        for x in rows:
-            st = x["replay"]
-            print(f"{x['cycle']:5d} {x['interval_id']:3d} {x['spikes']:6d} {x['hyp']:3d} | "
-                  f"{st['push']:11d} {st['end']:8d} {st['pca']:8d} {st['mhtc']:10d} {st['quality']:8d} "
-                  f"{st['control']:7d} {x['replay_cycle']:10d} | {x['session_cycle']:10d} {x['session_process']:10d} | "
-                  f"{x['session_cycle'] / x['replay_cycle']:.4f} {x['session_process'] / x['replay_process']:.4f} "
-                  f"{x['session_detect'] / st['push']:.4f}{'' if x['same_facts'] else '  FACTS DIFFER'}")
-    summary = {
-        "calibration": cal,
-        "intervals": len(rows),
-        "facts_differ": mismatch,
-        "replay_cycle": {"median": median([x["replay_cycle"] for x in rows]), "max": max(x["replay_cycle"] for x in rows)},
-        "replay_process": {"median": median([x["replay_process"] for x in rows]),
-                           "max": max(x["replay_process"] for x in rows)},
-        "replay_push": {"median": median([x["replay"]["push"] for x in rows])},
-        "session_cycle": {"median": median([x["session_cycle"] for x in rows]), "max": max(x["session_cycle"] for x in rows)},
-        "session_process": {"median": median([x["session_process"] for x in rows]),
-                            "max": max(x["session_process"] for x in rows)},
-        "session_detect": {"median": median([x["session_detect"] for x in rows])},
-        "ratio_cycle": ratio_summary([(x["replay_cycle"], x["session_cycle"]) for x in rows]),
-        "ratio_process": ratio_summary([(x["replay_process"], x["session_process"]) for x in rows]),
-        "ratio_detect": ratio_summary([(x["replay"]["push"], x["session_detect"]) for x in rows]),
-        "diff_cycle": {"median": median([x["session_cycle"] - x["replay_cycle"] for x in rows])},
-        "diff_process": {"median": median([x["session_process"] - x["replay_process"] for x in rows]),
-                         "min": min(x["session_process"] - x["replay_process"] for x in rows),
-                         "max": max(x["session_process"] - x["replay_process"] for x in rows)},
-        "diff_detect": {"median": median([x["session_detect"] - x["replay"]["push"] for x in rows]),
-                        "min": min(x["session_detect"] - x["replay"]["push"] for x in rows),
-                        "max": max(x["session_detect"] - x["replay"]["push"] for x in rows)},
-    }
-    m = lambda v: "-" if v is None else f"{v / 1e6:.2f} M"  # noqa: E731
-    print(f"replay_cost: {len(rows)} intervals processed by both; calibration {cal}; "
-          f"facts (spikes, dominant, tracks, hypotheses, SNR bits) "
-          f"{'identical in every interval' if not mismatch else 'DIFFER in cycles ' + str(mismatch[:10])}")
-    print(f"replay_cost: cycle   replay median {m(summary['replay_cycle']['median'])} max {m(summary['replay_cycle']['max'])}"
-          f" | session median {m(summary['session_cycle']['median'])} max {m(summary['session_cycle']['max'])}")
-    print(f"replay_cost: process replay median {m(summary['replay_process']['median'])} "
-          f"max {m(summary['replay_process']['max'])} | session median {m(summary['session_process']['median'])} "
-          f"max {m(summary['session_process']['max'])}")
-    for k in ("cycle", "process", "detect"):
-        r = summary[f"ratio_{k}"]
-        print(f"replay_cost: session/replay {k:7s}: median {r['median']:.4f}, range {r['min']:.4f}..{r['max']:.4f}, "
-              f"{r['within_10pct']} of {r['n']} within 10 %")
-    print(f"replay_cost: session - replay: process median {summary['diff_process']['median']:.0f} "
-          f"(range {summary['diff_process']['min']}..{summary['diff_process']['max']}), detection median "
-          f"{summary['diff_detect']['median']:.0f} (range {summary['diff_detect']['min']}..{summary['diff_detect']['max']}) "
-          f"instructions")
+        print_rows(rows)
+    summary = summarise(rows, cal, mismatch)
+    print_summary(summary, rows, cal, mismatch)
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"summary": summary, "intervals": rows}, f, indent=1)
