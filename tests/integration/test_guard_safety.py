@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The approach guard saves the neuron a tracker misses: a CI subset of the
-safety sweep (docs/safety-sweep.md, docs/sfsm.md "Approach guard").
+safety sweep (tools/eval/run_suite.py --safety; its results: docs/sfsm.md "Approach guard").
 
     test_guard_safety.py BUILD_DIR SCENARIO_DIR OUT_DIR
 

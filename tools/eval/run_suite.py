@@ -8,7 +8,7 @@
 
 Scenario names are paths below scenarios/ without .yaml (`single_neuron`, `stress/dense_cells`); the default
 is every scenarios/*.yaml, plus scenarios/stress/*.yaml with --with-stress. --param sets a controller
-parameter in every run (cached apart). --safety writes the safety table instead (docs/safety-sweep.md): per
+parameter in every run (cached apart). --safety writes the safety table instead (measured: docs/sfsm.md): per
 scenario and tracker the neurons damaged and the closest approach of the tip to any neuron, with the
 isolation figures next to them.
 
@@ -29,7 +29,6 @@ import hashlib
 import json
 import os
 import statistics
-import subprocess
 import sys
 import threading
 
@@ -51,19 +50,12 @@ THESIS_INTERVALS = 21914
 
 def build_id(session_bin):
     """Identity of the code under test: sha256 of the microdrive-session binary (the whole controller and
-    simulator are linked into it) and the git commit it was built from (+dirty)."""
+    simulator are linked into it)."""
     h = hashlib.sha256()
     with open(session_bin, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             h.update(chunk)
-    try:
-        head = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short=10", "HEAD"], capture_output=True,
-                              text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", ROOT, "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        head, dirty = "unknown", ""
-    return {"binary_sha256": h.hexdigest()[:16], "git": head + ("+dirty" if dirty else "")}
+    return {"binary_sha256": h.hexdigest()[:16]}
 
 
 def scenario_duration_s(path):
@@ -213,7 +205,7 @@ def safety_markdown(args, table, builds, started, finished, n_runs, n_cached, n_
         "```",
         "",
         f"Runs {n_runs} ({n_cached} from the cache, {n_failed} failed), {started} to {finished} UTC, "
-        f"build(s) {', '.join(b['git'] + ' ' + b['binary_sha256'] for b in builds if b)}.",
+        f"build(s): microdrive-session sha256 {', '.join(b['binary_sha256'] for b in builds if b)}.",
         "",
         f"**Neurons damaged: {damaged} in {total_runs} sessions; smallest closest approach "
         f"{fmt(worst, '.1f')} µm.**",
@@ -252,7 +244,7 @@ def markdown(args, table, builds, started, finished, n_runs, n_cached, n_failed)
       f"{args.seed_start}..{args.seed_start + args.seeds - 1}; in-process bus, `--param tracker=N`; session goal: "
       f"each scenario's `duration_s`" + (f", capped at {args.max_duration_s:g} s simulated" if args.max_duration_s
                                          else ""))
-    bl = "; ".join(f"git {b['git']}, microdrive-session sha256 {b['binary_sha256']}" for b in builds)
+    bl = "; ".join(f"microdrive-session sha256 {b['binary_sha256']}" for b in builds)
     w(f"- build{'s (MIXED: rerun with --rerun-stale)' if len(builds) > 1 else ''}: {bl}")
     w(f"- run from {started} to {finished} (UTC), {args.jobs} parallel jobs under nice {args.nice}")
     w("")
@@ -272,6 +264,12 @@ def markdown(args, table, builds, started, finished, n_runs, n_cached, n_failed)
         cells = [criterion(scen, s) if f is None else f(s) for _, f in COLUMNS]
         w(f"| {scen} | {TRACKERS[tracker]} | " + " | ".join(cells) + " |")
     w("")
+    thesis_section(w, table)
+    return "\n".join(lines) + "\n"
+
+
+def thesis_section(w, table):
+    """The few figures of the thesis that have a counterpart here, next to ours (all scenarios pooled)."""
     w("## Next to the thesis")
     w("")
     w("The thesis evaluates on macaque recordings without ground truth, so only a few of its figures have a "
@@ -305,7 +303,6 @@ def markdown(args, table, builds, started, finished, n_runs, n_cached, n_failed)
       "drift_away criterion above |")
     w("| cost per interval | §4.6: 2-20 s per interval (non-optimised MATLAB, mean ~10 s) | docs/benchmarks.md |")
     w("")
-    return "\n".join(lines) + "\n"
 
 
 def ratio_text(pooled):
@@ -383,7 +380,7 @@ def main(argv=None):
     bid = build_id(args.session)
     started = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")
     print(f"run_suite: {len(jobs)} runs ({len(names)} scenarios x {len(trackers)} trackers x {args.seeds} seeds), "
-          f"{args.jobs} jobs, build {bid['git']} {bid['binary_sha256']}, cache {args.cache}", file=sys.stderr)
+          f"{args.jobs} jobs, microdrive-session sha256 {bid['binary_sha256']}, cache {args.cache}", file=sys.stderr)
     done = {}
     lock = threading.Lock()
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, args.jobs)) as ex:

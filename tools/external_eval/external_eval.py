@@ -293,10 +293,8 @@ def fmt(v, n=3):
     return "" if v is None else (f"{v:.{n}f}" if isinstance(v, float) else str(v))
 
 
-def report_md(data):
-    tr = data["trackers"]
-    L = []
-    a = L.append
+def md_intro(a, data):
+    """The title, what runs and how to regenerate."""
     a("# External evaluation: the trackers on SpikeInterface-generated recordings\n")
     a("Every tracker of `mhtc-replay` (MHTC and its baselines), the reference peer "
       "(`shared/peers/peer_stonesoup.py`: per-interval scikit-learn GMM + Stone Soup GNN tracker) and a "
@@ -311,10 +309,14 @@ def report_md(data):
     a("```\n")
     a(f"This run: {data['run_s'] / 60:.1f} min wall time on {data['machine']} ({data['jobs']} jobs; "
       f"generation {data['generate_s']:.0f} s, tracker runs and scoring the rest), "
-      f"{data['date_utc']}, git {data['git']}, SpikeInterface {data['versions']['spikeinterface']}, "
+      f"{data['date_utc']}, {data.get('tree', 'tree state not recorded')}, SpikeInterface {data['versions']['spikeinterface']}, "
       f"scikit-learn {data['versions']['sklearn']}, Stone Soup {data['versions']['stonesoup']}. "
       f"Per-run figures: `WORK/results.json`; the recordings and every tracker's outputs stay in WORK "
       f"(`{{static,drifting}}-SEED/`).\n")
+
+
+def md_recordings(a, data):
+    """The recordings: generators, channel, visibility, rates."""
     a("## Recordings\n")
     sp = recordings.static_params(data["duration_s"], 0)
     dp = recordings.drifting_params(data["duration_s"], 0)
@@ -344,6 +346,10 @@ def report_md(data):
       f"firmware's {MAX_SPIKES} stored detections per 10 s interval (`MD_MAX_SPIKES`; detections beyond it "
       "are counted, not stored, so they are never labelled). The column `at cap` below counts intervals "
       "that still hit it.\n")
+
+
+def md_method(a, data):
+    """The trackers and how they are scored."""
     a("## Trackers and scoring\n")
     a("- `mhtc`, `map-nn`, `ml-nn`, `gnn`: `mhtc-replay --tracker T` with its defaults (10 s intervals, "
       "wavelet detection, 1.15 ms windows, d = 2 PCA per interval, q = 10 µV, docs/mhtc.md). `mhtc` is "
@@ -372,6 +378,10 @@ def report_md(data):
       "`labelled` = with a track ID ≥ 0, `split` = visible units whose labelled spikes carry ≥ 2 track IDs "
       "with ≥ 10 % each.\n")
 
+
+def md_headline(a, data):
+    """Headline accuracies, the acceptance targets and where the accuracy goes."""
+    tr = data["trackers"]
     a("## Headline\n")
     a("| tracker | static mean | static unit mean | static range | drifting mean | drifting unit mean | "
       "drifting range | tracks issued (static / drifting) |")
@@ -403,6 +413,11 @@ def report_md(data):
                 a(f"| {t} | {kind} | {fmt(k['detected'])} | {fmt(k['labelled'])} | {fmt(k['unit_mean_accuracy'])} "
                   f"| {k['split_units']} of {k['units']} |")
     a("")
+
+
+def md_behind(a, data):
+    """The visible units where MHTC trails the best other tracker by 0.2 or more."""
+    tr = data["trackers"]
     a("## Units where MHTC is behind\n")
     a("Visible units whose MHTC accuracy is at least 0.2 below the best of the other trackers (the online "
       "MHTC labels excluded), with MHTC's loss split.\n")
@@ -423,10 +438,16 @@ def report_md(data):
     if behind:
         a("| recording | unit | × noise | nearest | MHTC | best other | MHTC det / lab / IDs |")
         a("|---|---|---:|---:|---:|---|---|")
-        L.extend(behind)
+        for row in behind:
+            a(row)
     else:
         a("None.")
     a("")
+
+
+def md_per_recording(a, data):
+    """Accuracy per recording and per unit."""
+    tr = data["trackers"]
     a("## Per recording\n")
     a("Mean accuracy over the recording's visible units; tracks issued in brackets.\n")
     a("| recording | ch | visible (× noise) | " + " | ".join(tr) + " |")
@@ -455,6 +476,10 @@ def report_md(data):
               + " | ".join(f"{r['trackers'][t]['units'][uid]['accuracy']:.2f}" for t in tr)
               + (f" | {m['detected']:.2f} / {m['labelled']:.2f} / {m['ids']} |" if m else " | |"))
     a("")
+
+
+def md_counters(a, data):
+    """MHTC's counters per recording, and the caveats."""
     if any("mhtc" in r["trackers"] for r in data["static"] + data["drifting"]):
         a("## MHTC counters (mhtc-replay summary.json `stats`)\n")
         keys = ["models_pruned", "models_failed", "evidence_fallbacks", "empty_intervals", "dup_pruned",
@@ -482,6 +507,12 @@ def report_md(data):
       "trackers, which share one signal chain.")
     a("- Differences of a few hundredths between trackers on this many units are within recording-to-recording "
       "spread; the per-recording table shows it.")
+
+
+def report_md(data):
+    L = []
+    for section in (md_intro, md_recordings, md_method, md_headline, md_behind, md_per_recording, md_counters):
+        section(L.append, data)
     return "\n".join(L) + "\n"
 
 
@@ -499,10 +530,13 @@ def versions():
             "numpy": np.__version__}
 
 
-def git_rev():
-    p = subprocess.run(["git", "-C", ROOT, "describe", "--always", "--dirty", "--abbrev=10"], capture_output=True,
+def tree_state():
+    """Whether the checkout the run starts from has uncommitted changes (the report names no commit)."""
+    p = subprocess.run(["git", "-C", ROOT, "status", "--porcelain", "--untracked-files=no"], capture_output=True,
                        text=True)
-    return p.stdout.strip() or "unknown"
+    if p.returncode != 0:
+        return "tree state unknown"
+    return "a tree with uncommitted changes" if p.stdout.strip() else "a clean tree"
 
 
 def check_args(args, trackers):
@@ -518,7 +552,7 @@ def cmd_run(args):
     trackers = [t for t in TRACKERS if not (args.no_peer and t in ("peer", "oracle-thr"))]
     check_args(args, trackers)
     binary = replay_bin(args)
-    rev = git_rev()          # the tree the run starts from
+    tree = tree_state()      # the tree the run starts from
     t0 = time.perf_counter()
     static, sk_s = collect("static", args.static, args.static_seed, args.duration, args, binary, trackers)
     drifting, sk_d = collect("drifting", args.drifting, args.drifting_seed, args.duration, args, binary, trackers)
@@ -533,7 +567,7 @@ def cmd_run(args):
     data = {"command": cmd, "run_s": run_s, "generate_s": sum(r["generate_s"] for r in static + drifting),
             "jobs": args.jobs, "machine": f"{os.cpu_count()} cores, {platform.machine()}",
             "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="minutes"),
-            "git": rev, "versions": versions(), "duration_s": args.duration,
+            "tree": tree, "versions": versions(), "duration_s": args.duration,
             "static_seed": args.static_seed, "drifting_seed": args.drifting_seed,
             "skipped": {"static": sk_s, "drifting": sk_d}, "trackers": trackers,
             "static": static, "drifting": drifting, "summary": summ,
@@ -596,7 +630,7 @@ def cmd_measure(args):
         "worse than measured. Regenerate on purpose, never to make a failing check pass: .venv/bin/python "
         "tools/external_eval/external_eval.py measure --build-dir build/release",
         ".venv/bin/python tools/external_eval/external_eval.py check --build-dir BUILD",
-        [{"git": git_rev(), "versions": versions()}], checks)
+        [{"tree": tree_state(), "versions": versions()}], checks)
     log(f"external-eval: wrote {len(checks)} bounds to {THRESHOLDS}")
     return 0
 

@@ -113,17 +113,12 @@ def one_run(a, scen, kind, seed):
 
 
 def build_line(session):
-    """Which code made the figures: the tree's commit (+dirty if it has uncommitted changes) and the
-    session binary's hash."""
+    """Which code made the figures: the session binary's hash (the controller and the simulator are linked
+    into it)."""
     import hashlib
-    def git(*args):
-        p = subprocess.run(["git", "-C", ROOT, *args], capture_output=True, text=True)
-        return p.stdout.strip() if p.returncode == 0 else "?"
-    dirty = "+dirty" if git("status", "--porcelain", "--untracked-files=no") else ""
     with open(session, "rb") as f:
         digest = hashlib.sha256(f.read()).hexdigest()[:16]
-    return (f"Build: git {git('rev-parse', '--short=10', 'HEAD')}{dirty}, "
-            f"`{os.path.relpath(session, ROOT)}` sha256 {digest}.")
+    return f"Build: `{os.path.relpath(session, ROOT)}` sha256 {digest}."
 
 
 def write_doc(a, rows, path):
