@@ -164,6 +164,36 @@ static void write_status(const char *what, md_status_t st)
     md_sh_write0(md_status_name(st));
 }
 
+/* The facts the replay computed for one interval (what the controller would
+ * report) and each stage's instructions, on the interval's line. */
+static void write_replay_facts(uint32_t n, const uint64_t *instr)
+{
+    bench_replay_info_t info;
+    bench_replay_info(&info);
+    uint32_t snr_bits = 0u;
+    memcpy(&snr_bits, &info.snr, sizeof snr_bits);
+    md_sh_write0(" samples ");
+    md_sh_write_uint(n);
+    md_sh_write0(" spikes ");
+    md_sh_write_uint(info.n_spikes);
+    md_sh_write0(" dominant ");
+    md_sh_write_uint(info.dominant);
+    md_sh_write0(" tracks ");
+    md_sh_write_uint(info.n_tracks);
+    md_sh_write0(" hyp ");
+    md_sh_write_uint(info.n_hyp);
+    md_sh_write0(" models ");
+    md_sh_write_uint(info.models);
+    md_sh_write0(" snr_bits ");
+    md_sh_write_hex(snr_bits);
+    for (unsigned s = 0u; s < (unsigned)BENCH_RP_COUNT; ++s) {
+        md_sh_write0(" ");
+        md_sh_write0(bench_replay_stage_name((bench_replay_stage_t)s));
+        md_sh_write0(" ");
+        write_u64(instr[s]);
+    }
+}
+
 /* One interval of the plan: samples read, then every stage timed. 1 if the
  * controller's cycle processed it (every stage OK), 0 if not, -1 on an I/O error. */
 static int replay_interval(int32_t samples, const uint8_t *rec, uint32_t k)
@@ -203,30 +233,7 @@ static int replay_interval(int32_t samples, const uint8_t *rec, uint32_t k)
         instr[s] = instr_since(t0);
         failed = (st == MD_OK) ? failed : s;
     }
-    bench_replay_info_t info;
-    bench_replay_info(&info);
-    uint32_t snr_bits = 0u;
-    memcpy(&snr_bits, &info.snr, sizeof snr_bits);
-    md_sh_write0(" samples ");
-    md_sh_write_uint(n);
-    md_sh_write0(" spikes ");
-    md_sh_write_uint(info.n_spikes);
-    md_sh_write0(" dominant ");
-    md_sh_write_uint(info.dominant);
-    md_sh_write0(" tracks ");
-    md_sh_write_uint(info.n_tracks);
-    md_sh_write0(" hyp ");
-    md_sh_write_uint(info.n_hyp);
-    md_sh_write0(" models ");
-    md_sh_write_uint(info.models);
-    md_sh_write0(" snr_bits ");
-    md_sh_write_hex(snr_bits);
-    for (unsigned s = 0u; s < (unsigned)BENCH_RP_COUNT; ++s) {
-        md_sh_write0(" ");
-        md_sh_write0(bench_replay_stage_name((bench_replay_stage_t)s));
-        md_sh_write0(" ");
-        write_u64(instr[s]);
-    }
+    write_replay_facts(n, instr);
     if (st == MD_OK) {
         md_sh_write0(" status OK\n");
         return 1;
@@ -281,7 +288,8 @@ static int replay(const char *plan_path, const char *samples_path)
     return 0;
 }
 
-int main(void)
+/* SysTick free-running at the CPU clock, its wrap interrupt counting periods. */
+static void start_systick(void)
 {
     SYST_CSR = 0u;
     SYST_RVR = RELOAD;
@@ -291,31 +299,46 @@ int main(void)
      * interrupt: start counting only once the reload has happened. */
     while (SYST_CVR == 0u) {
     }
+}
 
-    uint64_t t0 = ticks_now();
+/* The calibration line: a loop of known length against the counter. */
+static void write_calibration(void)
+{
+    const uint64_t t0 = ticks_now();
     cal_loop(CAL_ITERS);
     md_sh_write0("cal ");
     write_u64(instr_since(t0));
     md_sh_write0(" ");
     write_u64(2u * (uint64_t)CAL_ITERS);
     md_sh_write0("\n");
+}
 
-    if (md_sh_get_cmdline(g_cmdline, CMDLINE_MAX) > 0) {
-        char *pos = g_cmdline;
-        (void)next_word(&pos); /* the program */
-        const char *opt = next_word(&pos);
-        if (opt != NULL) {
-            const char *plan = next_word(&pos);
-            const char *samples = next_word(&pos);
-            if (strcmp(opt, "--replay") != 0 || plan == NULL || samples == NULL || next_word(&pos) != NULL) {
-                md_sh_write0("usage: md-bench-m7 [--replay PLAN SAMPLES]\n");
-                return 2;
-            }
-            return replay(plan, samples);
-        }
+/* --replay PLAN SAMPLES on the semihosting command line: the replay's exit
+ * status; -1 without options (the synthetic interval). */
+static int run_command_line(void)
+{
+    if (md_sh_get_cmdline(g_cmdline, CMDLINE_MAX) <= 0) {
+        return -1;
     }
+    char *pos = g_cmdline;
+    (void)next_word(&pos); /* the program */
+    const char *opt = next_word(&pos);
+    if (opt == NULL) {
+        return -1;
+    }
+    const char *plan = next_word(&pos);
+    const char *samples = next_word(&pos);
+    if (strcmp(opt, "--replay") != 0 || plan == NULL || samples == NULL || next_word(&pos) != NULL) {
+        md_sh_write0("usage: md-bench-m7 [--replay PLAN SAMPLES]\n");
+        return 2;
+    }
+    return replay(plan, samples);
+}
 
-    t0 = ticks_now();
+/* The synthetic interval: set-up, then every stage timed. */
+static int bench_synthetic(void)
+{
+    uint64_t t0 = ticks_now();
     md_status_t st = bench_setup();
     md_sh_write0("setup instr ");
     write_u64(instr_since(t0));
@@ -337,7 +360,6 @@ int main(void)
     md_sh_write0(" tracks ");
     md_sh_write_uint(info.tracks);
     md_sh_write0("\n");
-
     uint64_t cycle = 0u;
     for (unsigned s = 0u; s < (unsigned)BENCH_ST_COUNT; ++s) {
         t0 = ticks_now();
@@ -346,8 +368,7 @@ int main(void)
         md_sh_write0("stage ");
         md_sh_write0(bench_stage_name((bench_stage_t)s));
         if (st != MD_OK) {
-            md_sh_write0(" failed: ");
-            md_sh_write0(md_status_name(st));
+            write_status(" failed: ", st);
             md_sh_write0("\n");
             return 1;
         }
@@ -360,4 +381,12 @@ int main(void)
     write_u64(cycle);
     md_sh_write0("\n");
     return 0;
+}
+
+int main(void)
+{
+    start_systick();
+    write_calibration();
+    const int replayed = run_command_line();
+    return (replayed >= 0) ? replayed : bench_synthetic();
 }
