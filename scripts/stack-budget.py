@@ -331,33 +331,23 @@ def measure_externals(elf, names):
     return {n: depth(n) for n in names if n in own}
 
 
-def check_image(elf, budgets, verbose):
-    name = os.path.basename(elf)
-    name = name[:-4] if name.endswith(".elf") else name
-    pattern = next((p for p in budgets.images if fnmatch.fnmatchcase(name, p)), None)
-    if pattern is None:
-        print(f"stack-budget: {name}: no budget in {os.path.relpath(budgets.path, ROOT)}", file=sys.stderr)
-        return False
-    img = budgets.images[pattern]
+def load_graph(elf, name):
+    """The image's call graph from its objects' .ci files, or None (reported)."""
     cis, missing = linked_ci_files(elf)
-    ok = True
     if missing:
         print(f"stack-budget: {name}: no -fcallgraph-info output for: " + ", ".join(
             os.path.relpath(m, ROOT) for m in missing), file=sys.stderr)
         print("  (build with -fcallgraph-info=su: tests/analysis/CMakeLists.txt adds it)", file=sys.stderr)
-        return False
+        return None
     g = CallGraph()
     for ci in cis:
         g.read_ci(ci)
-    measured = measure_externals(elf, list(budgets.extern))
-    an = Analysis(g, budgets, measured)
-
-    cyc = g.cycles()
-    for c in cyc:
-        print(f"stack-budget: {name}: RECURSION " + " -> ".join(c), file=sys.stderr)
-    ok = ok and not cyc
-
     print(f"== {name}: {len(cis)} call-graph files, {len(g.frame)} functions")
+    return g
+
+
+def worst_stack(img, budgets, an, verbose):
+    """Worst thread root plus every handler once (and its exception frame), printed."""
     total = 0
     for root in img["roots"]:
         depth, path = an.worst(root)
@@ -368,15 +358,18 @@ def check_image(elf, budgets, verbose):
     for root in img.get("report", []):
         depth, _ = an.worst(root)
         print(f"  (entry {root}: {depth} B, included above)")
-    isr_sum = 0
     for root in img["isr"]:
         depth, path = an.worst(root)
-        isr_sum += depth + budgets.exception_frame
+        total += depth + budgets.exception_frame
         print(f"  handler {root}: {depth} B + exception frame {budgets.exception_frame} B")
         if verbose:
             for fn, size, note in path:
                 print(f"      {size:6d}  {fn}{note}")
-    total += isr_sum
+    return total
+
+
+def check_declarations(an, budgets, measured, verbose):
+    """Declared library bounds against the disassembly; unused indirect declarations."""
     for ext, declared in sorted(an.externals_used.items()):
         meas = measured.get(ext)
         if meas is None:
@@ -387,14 +380,10 @@ def check_image(elf, budgets, verbose):
             print(f"  extern {ext}: declared {declared} B, disassembly {meas} B")
     for caller in sorted(set(budgets.indirect) - an.indirect_seen):
         print(f"  note: 'indirect {caller}' declared but no indirect call of it is on a checked path")
-    for e in sorted(set(an.errors)):
-        print(f"stack-budget: {name}: {e}", file=sys.stderr)
-        ok = False
-    budget = img.get("stack")
-    verdict = "ok" if budget is not None and total <= budget else "OVER BUDGET"
-    print(f"  worst-case stack {total} B (thread + every handler once) / budget {budget} B: {verdict}")
-    ok = ok and verdict == "ok"
 
+
+def check_ram(elf, img, budgets):
+    """Static RAM (.data + .bss) against the image's budget, printed; True if within."""
     data, bss, _ = static_ram(elf)
     ram = data + bss
     rb = img.get("ram")
@@ -402,7 +391,35 @@ def check_image(elf, budgets, verbose):
     goal = getattr(budgets, "ram_goal", None)
     print(f"  static RAM {ram} B (.data {data} + .bss {bss}) / budget {rb} B: {verdict}"
           + (f"  (project goal {goal} B)" if goal else ""))
-    return ok and verdict == "ok"
+    return verdict == "ok"
+
+
+def check_image(elf, budgets, verbose):
+    name = os.path.basename(elf)
+    name = name[:-4] if name.endswith(".elf") else name
+    pattern = next((p for p in budgets.images if fnmatch.fnmatchcase(name, p)), None)
+    if pattern is None:
+        print(f"stack-budget: {name}: no budget in {os.path.relpath(budgets.path, ROOT)}", file=sys.stderr)
+        return False
+    img = budgets.images[pattern]
+    g = load_graph(elf, name)
+    if g is None:
+        return False
+    measured = measure_externals(elf, list(budgets.extern))
+    an = Analysis(g, budgets, measured)
+    cyc = g.cycles()
+    for c in cyc:
+        print(f"stack-budget: {name}: RECURSION " + " -> ".join(c), file=sys.stderr)
+    ok = not cyc
+    total = worst_stack(img, budgets, an, verbose)
+    check_declarations(an, budgets, measured, verbose)
+    for e in sorted(set(an.errors)):
+        print(f"stack-budget: {name}: {e}", file=sys.stderr)
+        ok = False
+    budget = img.get("stack")
+    verdict = "ok" if budget is not None and total <= budget else "OVER BUDGET"
+    print(f"  worst-case stack {total} B (thread + every handler once) / budget {budget} B: {verdict}")
+    return check_ram(elf, img, budgets) and ok and verdict == "ok"
 
 
 def ci_files(args):

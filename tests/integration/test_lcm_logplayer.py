@@ -32,27 +32,19 @@ def events(path):
     return [(ev.channel, bytes(ev.data)) for ev in lcm.EventLog(path, "r")]
 
 
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--bridge", required=True)
-    ap.add_argument("--dbc", required=True)
-    ap.add_argument("--types", required=True)
-    ap.add_argument("--work", required=True)
-    a = ap.parse_args()
-    os.makedirs(a.work, exist_ok=True)
-    sys.path.insert(0, a.types)
-    sys.path.insert(0, os.path.join(HERE, "..", "..", "tools", "plots"))
-    from lcm_session import CHANNELS
-    import microdrive as md
-
+def make_log(a):
+    """The crafted session through md-lcm-bridge into an event log; its path."""
     subprocess.run([sys.executable, os.path.join(HERE, "test_lcm_fixture.py"), "--dbc", a.dbc, "--out", a.work],
                    check=True)
     log = os.path.join(a.work, "session.lcmlog")
     subprocess.run([a.bridge, "--quiet", "--from-log", os.path.join(a.work, "candump.log"), "--truth",
                     os.path.join(a.work, "truth.jsonl"), "--write-log", log], check=True)
-    want = events(log)
+    return log
 
-    recorded = os.path.join(a.work, "recorded.lcmlog")
+
+def play(log, recorded, want, channels, md):
+    """lcm-logplayer plays `log` while lcm-logger writes `recorded` and a
+    subscriber collects (channel, bytes); returns (player, seconds, got, decode errors)."""
     # lcm-logger 1.3.1 documents -l but only accepts the long form
     logger = subprocess.Popen(["lcm-logger", "-q", "-f", "-c", "MD_.*", f"--lcm-url={URL}", recorded])
     lc = lcm.LCM(URL)
@@ -61,7 +53,7 @@ def main():
     def on_msg(channel, data):
         got.append((channel, bytes(data)))
         try:
-            getattr(md, CHANNELS[channel]).decode(data)
+            getattr(md, channels[channel]).decode(data)
         except Exception as exc:  # noqa: BLE001 - any decode failure is a test failure
             decode_errors.append(f"{channel}: {exc}")
 
@@ -86,6 +78,26 @@ def main():
     th.join()
     logger.send_signal(signal.SIGINT)
     logger.wait(timeout=10)
+    return player, played_s, got, decode_errors
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--bridge", required=True)
+    ap.add_argument("--dbc", required=True)
+    ap.add_argument("--types", required=True)
+    ap.add_argument("--work", required=True)
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    sys.path.insert(0, a.types)
+    sys.path.insert(0, os.path.join(HERE, "..", "..", "tools", "plots"))
+    from lcm_session import CHANNELS
+    import microdrive as md
+
+    log = make_log(a)
+    want = events(log)
+    recorded = os.path.join(a.work, "recorded.lcmlog")
+    player, played_s, got, decode_errors = play(log, recorded, want, CHANNELS, md)
 
     fails = []
     if player.returncode != 0:

@@ -88,8 +88,8 @@ def run(path, *extra):
     return p.returncode, json.loads(p.stdout) if p.stdout.strip() else {}
 
 
-def main():
-    failures = []
+def violation_cases():
+    """One crafted log per invariant, each breaking that invariant once."""
     cases = {}
     cases["window"] = clean()
     cases["window"].cycle(1000.0, 6000.0, steps=0)
@@ -113,68 +113,91 @@ def main():
     g.advance(0.2, ctrl_state=127)
     g.cycle(1000.0, 1010.0)
     cases["restart"] = g
+    return cases
 
-    with tempfile.TemporaryDirectory() as d:
-        rc, s = run(clean().write(d, "clean.log"))
-        if rc != 0 or not s.get("ok"):
-            failures.append(f"clean log: rc {rc}, {s.get('violations')}")
-        # heartbeat loss handled right: EMCY in time, no motion until back, then motion again
-        g = clean()
-        g.advance(0.6, skip=(3,))
-        g.frame("EMCY_CTRL", ErrorCode=0x8130, ErrorRegister=0x10, Electrode=255, Info=3)
-        g.advance(0.3, skip=(3,))
-        g.advance(0.2)
-        g.cycle(1000.0, 1010.0)
-        # e-stop handled right: cleared by NMT before the next step
-        g.frame("ESTOP", EstopSource=5, EstopReason=1)
-        g.advance(0.3)
-        g.frame("NMT", NmtCommand=131, NmtTarget=0)
-        g.cycle(1010.0, 1020.0)
-        rc, s = run(g.write(d, "handled.log"))
-        if rc != 0:
-            failures.append(f"handled faults flagged: {s.get('violations')}")
-        for inv, g in cases.items():
-            rc, s = run(g.write(d, f"{inv}.log"))
-            by = s.get("violations_by_invariant", {})
-            others = {k: v for k, v in by.items() if v and k != inv}
-            if rc != 1 or by.get(inv, 0) < 1 or others:
-                failures.append(f"{inv}: rc {rc}, by invariant {by}")
-            else:
-                print(f"ok: {inv} detected ({by[inv]})")
-        # --auto-start: preop then operational heartbeat counts as the start
-        g = Log()
-        g.frame("HEARTBEAT_CTRL", NodeState=0, ProtocolVersion=1)
-        g.advance(0.2, ctrl_state=127)
-        g.advance(0.2)
-        g.cycle(1000.0, 1010.0)
-        p = g.write(d, "auto.log")
-        if run(p, "--auto-start")[0] != 0 or run(p)[0] != 1:
-            failures.append("auto-start handling")
-        # a full Delta_max retract takes more steps than an advance (retract steps are shorter)
-        g = clean()
-        g.cycle(1010.0, 980.0, steps=880, direction=1)
-        rc, s = run(g.write(d, "retract.log"))
-        if rc != 0:
-            failures.append(f"30 um retract in 880 steps flagged: {s.get('violations')}")
-        g = clean()
-        g.cycle(1000.0, 1030.0, steps=880)                            # 35 um of advance steps
-        rc, s = run(g.write(d, "advance.log"))
-        if rc != 1 or s["violations_by_invariant"].get("step_cmd", 0) < 1:
-            failures.append(f"35 um advance not flagged: {s.get('violations_by_invariant')}")
-        # step_true: the true tip (truth.jsonl) jumps 40 um between two recordings
-        tp = os.path.join(d, "truth.jsonl")
-        with open(tp, "w") as f:
-            f.write('{"type":"neuron","electrode":0,"neuron":0,"depth_um":1200.0}\n')
-            for t, tip in ((0.0, 1000.0), (10.0, 1020.0), (20.0, 1060.0)):
-                f.write(json.dumps({"type": "state", "t_s": t, "electrode": 0, "tip_um": tip}) + "\n")
-        rc, s = run(clean().write(d, "clean2.log"), "--truth", tp)
+
+def check_clean_and_handled(d, failures):
+    """A clean log, and one whose heartbeat loss and e-stop are handled right, pass."""
+    rc, s = run(clean().write(d, "clean.log"))
+    if rc != 0 or not s.get("ok"):
+        failures.append(f"clean log: rc {rc}, {s.get('violations')}")
+    # heartbeat loss handled right: EMCY in time, no motion until back, then motion again
+    g = clean()
+    g.advance(0.6, skip=(3,))
+    g.frame("EMCY_CTRL", ErrorCode=0x8130, ErrorRegister=0x10, Electrode=255, Info=3)
+    g.advance(0.3, skip=(3,))
+    g.advance(0.2)
+    g.cycle(1000.0, 1010.0)
+    # e-stop handled right: cleared by NMT before the next step
+    g.frame("ESTOP", EstopSource=5, EstopReason=1)
+    g.advance(0.3)
+    g.frame("NMT", NmtCommand=131, NmtTarget=0)
+    g.cycle(1010.0, 1020.0)
+    rc, s = run(g.write(d, "handled.log"))
+    if rc != 0:
+        failures.append(f"handled faults flagged: {s.get('violations')}")
+
+
+def check_violations(d, failures):
+    """Each crafted violation is detected, and only that one."""
+    for inv, g in violation_cases().items():
+        rc, s = run(g.write(d, f"{inv}.log"))
         by = s.get("violations_by_invariant", {})
-        if rc != 1 or by.get("step_true") != 1 or any(v for k, v in by.items() if k != "step_true"):
-            failures.append(f"step_true: rc {rc}, {by}")
+        others = {k: v for k, v in by.items() if v and k != inv}
+        if rc != 1 or by.get(inv, 0) < 1 or others:
+            failures.append(f"{inv}: rc {rc}, by invariant {by}")
         else:
-            print("ok: step_true detected (1)")
-        if subprocess.run([sys.executable, CHECK, os.path.join(d, "missing.log")], capture_output=True).returncode != 2:
-            failures.append("unreadable log must exit 2")
+            print(f"ok: {inv} detected ({by[inv]})")
+
+
+def check_start_and_steps(d, failures):
+    """--auto-start, the retract/advance step counts, the true-tip jump, a missing log."""
+    # --auto-start: preop then operational heartbeat counts as the start
+    g = Log()
+    g.frame("HEARTBEAT_CTRL", NodeState=0, ProtocolVersion=1)
+    g.advance(0.2, ctrl_state=127)
+    g.advance(0.2)
+    g.cycle(1000.0, 1010.0)
+    p = g.write(d, "auto.log")
+    if run(p, "--auto-start")[0] != 0 or run(p)[0] != 1:
+        failures.append("auto-start handling")
+    # a full Delta_max retract takes more steps than an advance (retract steps are shorter)
+    g = clean()
+    g.cycle(1010.0, 980.0, steps=880, direction=1)
+    rc, s = run(g.write(d, "retract.log"))
+    if rc != 0:
+        failures.append(f"30 um retract in 880 steps flagged: {s.get('violations')}")
+    g = clean()
+    g.cycle(1000.0, 1030.0, steps=880)                            # 35 um of advance steps
+    rc, s = run(g.write(d, "advance.log"))
+    if rc != 1 or s["violations_by_invariant"].get("step_cmd", 0) < 1:
+        failures.append(f"35 um advance not flagged: {s.get('violations_by_invariant')}")
+    check_true_tip(d, failures)
+    if subprocess.run([sys.executable, CHECK, os.path.join(d, "missing.log")], capture_output=True).returncode != 2:
+        failures.append("unreadable log must exit 2")
+
+
+def check_true_tip(d, failures):
+    """step_true: the true tip (truth.jsonl) jumps 40 um between two recordings."""
+    tp = os.path.join(d, "truth.jsonl")
+    with open(tp, "w") as f:
+        f.write('{"type":"neuron","electrode":0,"neuron":0,"depth_um":1200.0}\n')
+        for t, tip in ((0.0, 1000.0), (10.0, 1020.0), (20.0, 1060.0)):
+            f.write(json.dumps({"type": "state", "t_s": t, "electrode": 0, "tip_um": tip}) + "\n")
+    rc, s = run(clean().write(d, "clean2.log"), "--truth", tp)
+    by = s.get("violations_by_invariant", {})
+    if rc != 1 or by.get("step_true") != 1 or any(v for k, v in by.items() if k != "step_true"):
+        failures.append(f"step_true: rc {rc}, {by}")
+    else:
+        print("ok: step_true detected (1)")
+
+
+def main():
+    failures = []
+    with tempfile.TemporaryDirectory() as d:
+        check_clean_and_handled(d, failures)
+        check_violations(d, failures)
+        check_start_and_steps(d, failures)
     for f in failures:
         print("FAIL:", f)
     return 1 if failures else 0
