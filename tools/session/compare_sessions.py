@@ -49,13 +49,13 @@ def read_frames(path, db):
     """Per electrode: [cycle] -> [(name, data)] in log order; SIM_ADVANCEs; EMCY 0x8130 count."""
     per_el = defaultdict(lambda: [[]])       # e -> list of cycles, each a frame list (last one open)
     cycle_info = defaultdict(list)           # e -> [(IntervalId, StartTime_us)] per closed cycle
-    steps, lost = [], 0
+    advances, lost = [], 0
     pending_cycle = {}
     cost = cost_bytes(db)
     for fr in canlog.frames(path, READ, db):
         name, raw = fr.name, fr.data
         if name == "SIM_ADVANCE":
-            steps.append(raw)
+            advances.append(raw)
         elif name == "EMCY_CTRL":
             m = canlog.decode(db, fr)
             lost += m is not None and int(m["ErrorCode"]) == EMCY_HB_LOST
@@ -70,7 +70,7 @@ def read_frames(path, db):
             if name == "TLM_STATUS":
                 cycle_info[e].append(pending_cycle.get(e, (None, None)))
                 per_el[e].append([])         # TLM_STATUS closes the cycle's decision
-    return per_el, cycle_info, steps, lost
+    return per_el, cycle_info, advances, lost
 
 
 def decode_diff(db, name, a, b):
@@ -182,19 +182,19 @@ def main(argv=None):
     args = ap.parse_args(argv)
     db = canlog.load_dbc(args.dbc)
     try:
-        fa, info_a, steps_a, lost_a = read_frames(os.path.join(args.a, "candump.log"), db)
-        fb, _, steps_b, lost_b = read_frames(os.path.join(args.b, "candump.log"), db)
+        fa, info_a, advances_a, lost_a = read_frames(os.path.join(args.a, "candump.log"), db)
+        fb, _, advances_b, lost_b = read_frames(os.path.join(args.b, "candump.log"), db)
     except OSError as exc:
         print(f"compare_sessions: {exc}", file=sys.stderr)
         return 2
     counts = {e: (len(fa.get(e, [[]])) - 1, len(fb.get(e, [[]])) - 1) for e in sorted(set(fa) | set(fb))}
     diff = first_difference(db, fa, fb, info_a, args.cycles)
-    n_steps = min(len(steps_a), len(steps_b))
-    step_diff = next((i for i in range(n_steps) if steps_a[i] != steps_b[i]), None)
+    n_advances = min(len(advances_a), len(advances_b))
+    advance_diff = next((i for i in range(n_advances) if advances_a[i] != advances_b[i]), None)
     fields, n_diff = all_differences(db, fa, fb, args.cycles)
     verdict = {"cycles": {str(e): c for e, c in counts.items()}, "first_difference": diff,
                "differing_cycles": n_diff, "differing_fields": fields,
-               "sim_step_difference": step_diff, "heartbeat_lost_emcy": [lost_a, lost_b]}
+               "sim_advance_difference": advance_diff, "heartbeat_lost_emcy": [lost_a, lost_b]}
     rep_same = None
     ra, rb = os.path.join(args.a, "report.json"), os.path.join(args.b, "report.json")
     if not args.cycles and os.path.exists(ra) and os.path.exists(rb):
@@ -206,7 +206,7 @@ def main(argv=None):
     verdict["report_same"] = rep_same
     print(f"compare_sessions: cycles per electrode (A, B): {counts}; controller heartbeat-loss EMCYs: "
           f"A {lost_a}, B {lost_b}")
-    if diff is None and step_diff is None:
+    if diff is None and advance_diff is None:
         print("compare_sessions: every decision frame of the compared cycles is identical "
               "(TLM_STATUS cost fields aside)")
     else:
@@ -214,8 +214,8 @@ def main(argv=None):
             print(f"compare_sessions: FIRST DIFFERENCE: electrode {diff['electrode']}, cycle #{diff['cycle_index']}, "
                   f"interval {diff['interval_id']} starting at {diff['start_time_s']} s: {diff['frame']} "
                   f"{diff.get('fields', '')}")
-        if step_diff is not None:
-            print(f"compare_sessions: SIM_ADVANCE #{step_diff} differs")
+        if advance_diff is not None:
+            print(f"compare_sessions: SIM_ADVANCE #{advance_diff} differs")
         print(f"compare_sessions: {n_diff} cycles differ; by frame.field (cycles): {fields}")
     if rep_same is not None:
         print(f"compare_sessions: report.json {'identical' if rep_same else 'DIFFERENT'} apart from bus and cost")
@@ -225,7 +225,7 @@ def main(argv=None):
         with open(args.json, "w") as f:
             json.dump(verdict, f, indent=2, default=str)
             f.write("\n")
-    same = diff is None and step_diff is None and rep_same is not False
+    same = diff is None and advance_diff is None and rep_same is not False
     return 0 if same else 1
 
 
