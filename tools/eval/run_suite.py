@@ -186,6 +186,19 @@ SAFETY_COLUMNS = [
 ]
 
 
+def build_line(args, builds):
+    """The builds a table comes from, flagged when they are several or not the binary in --build-dir."""
+    shas = [b["binary_sha256"] for b in builds if b]
+    stale = any(sha != args.current_build["binary_sha256"] for sha in shas)
+    line = f"microdrive-session sha256 {', '.join(shas)}"
+    if len(shas) > 1:
+        line += " (MIXED: rerun with --rerun-stale)"
+    elif stale:
+        line += (f" (NOT the build in {args.build_dir}, sha256 {args.current_build['binary_sha256']}: "
+                 "cached runs; rerun with --rerun-stale)")
+    return line, stale
+
+
 def safety_markdown(args, table, builds, started, finished, n_runs, n_cached, n_failed):
     """The safety sweep: damage and closest approach per scenario and tracker."""
     total_runs = sum(s["sessions"] for _, s in table)
@@ -205,7 +218,7 @@ def safety_markdown(args, table, builds, started, finished, n_runs, n_cached, n_
         "```",
         "",
         f"Runs {n_runs} ({n_cached} from the cache, {n_failed} failed), {started} to {finished} UTC, "
-        f"build(s): microdrive-session sha256 {', '.join(b['binary_sha256'] for b in builds if b)}.",
+        f"build(s): {build_line(args, builds)[0]}.",
         "",
         f"**Neurons damaged: {damaged} in {total_runs} sessions; smallest closest approach "
         f"{fmt(worst, '.1f')} µm.**",
@@ -244,8 +257,7 @@ def markdown(args, table, builds, started, finished, n_runs, n_cached, n_failed)
       f"{args.seed_start}..{args.seed_start + args.seeds - 1}; in-process bus, `--param tracker=N`; session goal: "
       f"each scenario's `duration_s`" + (f", capped at {args.max_duration_s:g} s simulated" if args.max_duration_s
                                          else ""))
-    bl = "; ".join(f"microdrive-session sha256 {b['binary_sha256']}" for b in builds)
-    w(f"- build{'s (MIXED: rerun with --rerun-stale)' if len(builds) > 1 else ''}: {bl}")
+    w(f"- build(s): {build_line(args, builds)[0]}")
     w(f"- run from {started} to {finished} (UTC), {args.jobs} parallel jobs under nice {args.nice}")
     w("")
     w("Per scenario and tracker, pooled over seeds and electrodes: accuracy = mean spike accuracy per (interval, "
@@ -378,6 +390,7 @@ def main(argv=None):
         raise SystemExit(f"run_suite: no {args.session} (build first, or --build-dir)")
     names, trackers, jobs = jobs_of(args)
     bid = build_id(args.session)
+    args.current_build = bid
     started = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")
     print(f"run_suite: {len(jobs)} runs ({len(names)} scenarios x {len(trackers)} trackers x {args.seeds} seeds), "
           f"{args.jobs} jobs, microdrive-session sha256 {bid['binary_sha256']}, cache {args.cache}", file=sys.stderr)
@@ -404,8 +417,8 @@ def main(argv=None):
                     builds.append(r.get("build"))
     n_failed = sum(1 for r, rep, _ in done.values() if rep is None)
     n_cached = sum(1 for _, _, c in done.values() if c)
-    if len(builds) > 1:
-        print(f"run_suite: WARNING: the table mixes {len(builds)} builds (--rerun-stale)", file=sys.stderr)
+    if len(builds) > 1 or build_line(args, builds)[1]:
+        print(f"run_suite: WARNING: the table comes from {build_line(args, builds)[0]}", file=sys.stderr)
     write = safety_markdown if args.safety else markdown
     md = write(args, table, builds, started, finished, len(jobs), n_cached, n_failed)
     if args.md:
