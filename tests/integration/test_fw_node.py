@@ -7,7 +7,8 @@ per ctest:
     netns-run.sh PYTHON test_fw_node.py SCENARIO --fw BIN --mdcan BIN --dbc DBC
 
 The firmware runs as its own process; `mdcan dump` records the bus (candump -L
-lines, decoded here with cantools and the project DBC) and `mdcan send` plays
+lines, read and decoded by DBC message name with microdrive.canlog and the
+project DBC) and `mdcan send` plays
 the other nodes: a fake actuator heartbeat, the operator's NMT, e-stop and
 parameter requests, and deliberately malformed frames.
 
@@ -20,7 +21,7 @@ import sys
 import threading
 import time
 
-import cantools
+from microdrive import canlog
 
 HB_MS = 100
 RUNNING = []  # firmware processes to kill if a scenario fails
@@ -28,12 +29,13 @@ TIMEOUT_MS = 300
 
 
 class Bus:
-    """A running `mdcan dump` plus helpers to send and to wait for frames."""
+    """A running `mdcan dump` plus helpers to send and to wait for frames, named as in the DBC."""
 
     def __init__(self, mdcan, db):
         self.mdcan = mdcan
         self.db = db
-        self.frames = []  # (time_s, id, data bytes, fd)
+        self.names = {m.frame_id: m.name for m in db.messages}
+        self.frames = []  # canlog.Frame (name None: an id the DBC does not define)
         self.lock = threading.Lock()
         self.proc = subprocess.Popen([mdcan, "dump", "--bus", "udp", "--timeout-ms", "60000"],
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -44,17 +46,12 @@ class Bus:
 
     def _read(self):
         for line in self.proc.stdout:
-            parts = line.split()
-            if len(parts) != 3:
+            r = canlog.parse_line(line)
+            if r is None:
                 continue
-            t = float(parts[0].strip("()"))
-            frame = parts[2]
-            fd = "##" in frame
-            ident, data = frame.split("##" if fd else "#", 1)
-            if fd:
-                data = data[1:]  # flags nibble
+            t, frame_id, data = r
             with self.lock:
-                self.frames.append((t, int(ident, 16), bytes.fromhex(data), fd))
+                self.frames.append(canlog.Frame(t, frame_id, self.names.get(frame_id), data))
 
     def close(self):
         self.proc.terminate()
@@ -70,23 +67,27 @@ class Bus:
         with self.lock:
             return len(self.frames)
 
-    def since(self, mark, frame_id=None):
+    def since(self, mark, name=None):
+        """Frames after mark (only the DBC message `name` if given)."""
+        if name is not None and name not in self.names.values():
+            raise KeyError(f"{name} is no message of the DBC")
         with self.lock:
-            return [f for f in self.frames[mark:] if frame_id is None or f[1] == frame_id]
+            return [f for f in self.frames[mark:] if name is None or f.name == name]
 
-    def wait_for(self, mark, frame_id, pred=lambda m: True, timeout_s=3.0):
-        """First frame with frame_id after mark whose decoded signals satisfy pred."""
+    def wait_for(self, mark, name, pred=lambda m: True, timeout_s=3.0):
+        """First frame of message `name` after mark whose decoded signals satisfy pred."""
         deadline = time.time() + timeout_s
         while time.time() < deadline:
-            for f in self.since(mark, frame_id):
+            for f in self.since(mark, name):
                 msg = self.decode(f)
-                if pred(msg):
+                if msg is not None and pred(msg):
                     return f, msg
             time.sleep(0.005)
-        raise AssertionError(f"no frame 0x{frame_id:X} matching within {timeout_s} s")
+        raise AssertionError(f"no {name} frame matching within {timeout_s} s")
 
     def decode(self, f):
-        return self.db.decode_message(f[1], f[2], decode_choices=False)
+        """The frame's signals (raw enumeration values), None if its data does not decode."""
+        return canlog.decode(self.db, f)
 
 
 def check(cond, what):
@@ -118,7 +119,7 @@ def act_heartbeat(db, state=5):
 def param(bus, db, op, index, value=0.0):
     m = bus.mark()
     bus.send(param_req(db, op, index, value))
-    _, resp = bus.wait_for(m, 0x581, lambda r: r["Index"] == index)
+    _, resp = bus.wait_for(m, "PARAM_RESP_CTRL", lambda r: r["Index"] == index)
     return resp
 
 
@@ -128,8 +129,8 @@ def start_fw(args, bus, *extra):
                            "--heartbeat-timeout-ms", str(TIMEOUT_MS), *extra],
                           stderr=subprocess.PIPE, text=True)
     RUNNING.append(fw)
-    bus.wait_for(m, 0x701, lambda h: h["NodeState"] == 0)  # boot-up
-    bus.wait_for(m, 0x701, lambda h: h["NodeState"] == 127)
+    bus.wait_for(m, "HEARTBEAT_CTRL", lambda h: h["NodeState"] == 0)  # boot-up
+    bus.wait_for(m, "HEARTBEAT_CTRL", lambda h: h["NodeState"] == 127)
     return fw
 
 
@@ -145,7 +146,7 @@ def stop_fw(fw):
 
 def next_heartbeat(bus):
     m = bus.mark()
-    return bus.wait_for(m, 0x701, timeout_s=1.0)[1]
+    return bus.wait_for(m, "HEARTBEAT_CTRL", timeout_s=1.0)[1]
 
 
 # ---------------------------------------------------------------- scenarios
@@ -154,8 +155,8 @@ def scenario_params(args, bus, db):
     fw = start_fw(args, bus)
     m = bus.mark()
     time.sleep(1.05)
-    hbs = bus.since(m, 0x701)
-    gaps = [b[0] - a[0] for a, b in zip(hbs, hbs[1:])]
+    hbs = bus.since(m, "HEARTBEAT_CTRL")
+    gaps = [b.t - a.t for a, b in zip(hbs, hbs[1:])]
     check(len(hbs) >= 9, f"about 10 heartbeats in 1 s (got {len(hbs)})")
     mean_ms = 1000 * sum(gaps) / len(gaps)
     check(abs(mean_ms - HB_MS) < 10, f"mean heartbeat period {mean_ms:.1f} ms ~ {HB_MS} ms")
@@ -167,7 +168,7 @@ def scenario_params(args, bus, db):
     check(r["Status"] == 0 and r["Value"] == 200.0, "set heartbeat_period_ms 200 -> ok")
     m = bus.mark()
     time.sleep(1.05)
-    n = len(bus.since(m, 0x701))
+    n = len(bus.since(m, "HEARTBEAT_CTRL"))
     check(4 <= n <= 6, f"heartbeat follows the new period (5 expected in 1 s, got {n})")
     check(param(bus, db, 2, 0x1017, 1.0)["Status"] == 2, "out of range -> status 2")
     check(param(bus, db, 2, 0x1017, float("nan"))["Status"] == 2, "NaN -> status 2")
@@ -189,22 +190,22 @@ def scenario_heartbeat_lost(args, bus, db):
     check(next_heartbeat(bus)["NodeState"] == 5, "operational with the actuator alive")
     m = bus.mark()
     # silence from here: the last heartbeat left between last[0] and last[1]
-    (t_emcy, _, _, _), emcy = bus.wait_for(m, 0x81, lambda e: e["ErrorCode"] == 0x8130, timeout_s=2.0)
-    latency_ms = 1000 * (t_emcy - last[0])
-    latency_hi_ms = 1000 * (t_emcy - last[1])
+    emcy_frame, emcy = bus.wait_for(m, "EMCY_CTRL", lambda e: e["ErrorCode"] == 0x8130, timeout_s=2.0)
+    latency_ms = 1000 * (emcy_frame.t - last[0])
+    latency_hi_ms = 1000 * (emcy_frame.t - last[1])
     print(f"EMCY latency: {latency_hi_ms:.1f}..{latency_ms:.1f} ms after the last actuator heartbeat "
           f"(timeout {TIMEOUT_MS} ms)")
     check(emcy["Info"] == 2, "EMCY HEARTBEAT_LOST names the actuator (Info 2)")
     check(latency_ms >= TIMEOUT_MS, "EMCY not before the timeout")
     check(latency_hi_ms <= TIMEOUT_MS + 50, "EMCY within timeout + 50 ms")
-    halts = [bus.decode(f) for f in bus.since(m, 0x210)]
+    halts = [bus.decode(f) for f in bus.since(m, "ACT_CMD")]
     check(sorted(h["Electrode"] for h in halts if h["Command"] == 0) == [0, 1, 2], "halt sent to every electrode")
     time.sleep(1.0)
-    check(len([f for f in bus.since(m, 0x81) if bus.decode(f)["ErrorCode"] == 0x8130]) == 1, "exactly one EMCY")
+    check(len([f for f in bus.since(m, "EMCY_CTRL") if bus.decode(f)["ErrorCode"] == 0x8130]) == 1, "exactly one EMCY")
     check(next_heartbeat(bus)["Flags"] & 2, "heartbeat flags fault present")
     m = bus.mark()
     bus.send(act_heartbeat(db))
-    _, back = bus.wait_for(m, 0x81, lambda e: e["ErrorCode"] == 0 and e["Info"] == 2)
+    _, back = bus.wait_for(m, "EMCY_CTRL", lambda e: e["ErrorCode"] == 0 and e["Info"] == 2)
     check(True, "node back noted with EMCY 0x0000 Info 2")
     check(param(bus, db, 1, 0x3030)["Value"] == 1 and param(bus, db, 1, 0x3031)["Value"] == 1,
           "heartbeat_lost and node_back counters are 1")
@@ -217,10 +218,10 @@ def scenario_estop(args, bus, db):
     check(next_heartbeat(bus)["NodeState"] == 5, "operational")
     m = bus.mark()
     bus.send(frame(db, "ESTOP", EstopSource=5, EstopReason=1))
-    _, e = bus.wait_for(m, 0x81, lambda e: e["ErrorCode"] == 0x6200)
+    _, e = bus.wait_for(m, "EMCY_CTRL", lambda e: e["ErrorCode"] == 0x6200)
     check(e["Info"] == 5, "EMCY ESTOP names the source")
     time.sleep(0.1)
-    halts = [bus.decode(f) for f in bus.since(m, 0x210)]
+    halts = [bus.decode(f) for f in bus.since(m, "ACT_CMD")]
     check(sorted(h["Electrode"] for h in halts if h["Command"] == 0) == [0, 1, 2], "halt sent to every electrode")
     hb = next_heartbeat(bus)
     check(hb["Flags"] & 1 and hb["NodeState"] == 127, "latched flag, pre-operational")
@@ -231,7 +232,7 @@ def scenario_estop(args, bus, db):
     check(next_heartbeat(bus)["Flags"] & 1, "still latched after a second")
     m = bus.mark()
     bus.send(nmt(db, 129, 1))
-    _, boot = bus.wait_for(m, 0x701, lambda h: h["NodeState"] == 0)
+    _, boot = bus.wait_for(m, "HEARTBEAT_CTRL", lambda h: h["NodeState"] == 0)
     check(boot["Flags"] & 1, "reset-node reboots with the e-stop still latched")
     check(next_heartbeat(bus)["Flags"] & 1, "still latched after reset-node")
     bus.send(nmt(db, 131, 1))
@@ -251,21 +252,22 @@ def scenario_malformed(args, bus, db):
              f"{ident}##0{data}",             # FD flag on a classic frame: bad length
              "123#0011",                      # unknown id
              "12345678#00",                   # 29-bit id: unknown
-             "001#0700",                      # NMT command 7: bad range
+             nmt(db, 7),                      # NMT command 7: bad range
              frame(db, "HEARTBEAT_ACT", NodeState=5, ProtocolVersion=9, Flags=0, Electrodes=3, Uptime_s=0),
              frame(db, "HALL_READING", Electrode=0, Seq=0, RawCode=1, SampleTime_ms=0),
              frame(db, "HALL_READING", Electrode=0, Seq=5, RawCode=1, SampleTime_ms=0),  # bad sequence
-             "210#0001000001000100")          # ACT_CMD from someone else: id conflict
+             frame(db, "ACT_CMD", Electrode=0, Command=1, Direction=0, Seq=0, StepCount=1,
+                   StepRate_hz=1))            # ACT_CMD from someone else: id conflict
     time.sleep(0.3)
-    check(not bus.since(m, 0x581), "no parameter response to a malformed request")
+    check(not bus.since(m, "PARAM_RESP_CTRL"), "no parameter response to a malformed request")
     check(param(bus, db, 1, 0x1017)["Value"] == HB_MS, "heartbeat period unchanged")
     expect = {0x3011: 4, 0x3012: 2, 0x3013: 2, 0x3014: 2, 0x3015: 1, 0x3016: 1}
     for index, want in expect.items():
         got = param(bus, db, 1, index)["Value"]
         check(got == want, f"counter 0x{index:04X} = {got} (want {want})")
-    emcys = [bus.decode(f) for f in bus.since(m, 0x81)]
+    emcys = [bus.decode(f) for f in bus.since(m, "EMCY_CTRL")]
     check(len(emcys) == 1 and emcys[0]["ErrorCode"] == 0x8200, "one protocol EMCY (inhibited after the first)")
-    check(len(bus.since(m, 0x210)) == 1, "no motion command (the one ACT_CMD on the bus is ours)")
+    check(len(bus.since(m, "ACT_CMD")) == 1, "no motion command (the one ACT_CMD on the bus is ours)")
     check(next_heartbeat(bus)["NodeState"] == 127 and next_heartbeat(bus)["Flags"] == 0, "state unchanged")
     err = stop_fw(fw)
     check("malformed 4" in err, "exit summary counts the malformed frames")
@@ -278,7 +280,7 @@ def main():
     ap.add_argument("--mdcan", required=True)
     ap.add_argument("--dbc", required=True)
     args = ap.parse_args()
-    db = cantools.database.load_file(args.dbc)
+    db = canlog.load_dbc(args.dbc)
     bus = Bus(args.mdcan, db)
     try:
         globals()["scenario_" + args.scenario](args, bus, db)
