@@ -357,21 +357,28 @@ static lb_group_t *group_entry(lb_t *st, uint8_t electrode, uint16_t cycle, size
     return g;
 }
 
-static void on_track(lb_t *st, const md_frame_t *f)
-{
-    struct md_can_tlm_track_t r;
-    if (md_can_tlm_track_unpack(&r, f->data, f->len) != 0) {
-        st->stats.malformed++;
-        return;
+/* The handler `fn` of a frame that is one entry of a per-cycle table: TLM_TRACK (a track by its index) and
+ * TLM_HYP (a hypothesis by its rank). The frame `msg` decoded, its entry r.idx of the group's `table` (of `cap`
+ * entries) is stored and marked in table##_have. One definition for both, so the two cannot drift apart. */
+#define LB_TABLE_ENTRY_HANDLER(fn, msg, idx, table, cap)                     \
+    static void fn(lb_t *st, const md_frame_t *f)                            \
+    {                                                                        \
+        struct md_can_##msg##_t r;                                           \
+        if (md_can_##msg##_unpack(&r, f->data, f->len) != 0) {               \
+            st->stats.malformed++;                                           \
+            return;                                                          \
+        }                                                                    \
+        lb_group_t *g = group_entry(st, r.electrode, r.cycle, r.idx, (cap)); \
+        if (g == NULL) {                                                     \
+            return;                                                          \
+        }                                                                    \
+        g->table##_have[r.idx] = true;                                       \
+        g->table[r.idx] = r;                                                 \
+        group_maybe_publish(st, g);                                          \
     }
-    lb_group_t *g = group_entry(st, r.electrode, r.cycle, r.index, LB_MAX_TRACKS);
-    if (g == NULL) {
-        return;
-    }
-    g->track_have[r.index] = true;
-    g->track[r.index] = r;
-    group_maybe_publish(st, g);
-}
+
+LB_TABLE_ENTRY_HANDLER(on_track, tlm_track, index, track, LB_MAX_TRACKS)
+LB_TABLE_ENTRY_HANDLER(on_hyp, tlm_hyp, rank, hyp, LB_MAX_HYPS)
 
 static void on_wave(lb_t *st, const md_frame_t *f)
 {
@@ -407,22 +414,6 @@ static void on_wave(lb_t *st, const md_frame_t *f)
     w->parts_mask = (uint8_t)(w->parts_mask | (1u << r.part));
     st->stats.telemetry++;
     g->utime = lb_now_us(st);
-    group_maybe_publish(st, g);
-}
-
-static void on_hyp(lb_t *st, const md_frame_t *f)
-{
-    struct md_can_tlm_hyp_t r;
-    if (md_can_tlm_hyp_unpack(&r, f->data, f->len) != 0) {
-        st->stats.malformed++;
-        return;
-    }
-    lb_group_t *g = group_entry(st, r.electrode, r.cycle, r.rank, LB_MAX_HYPS);
-    if (g == NULL) {
-        return;
-    }
-    g->hyp_have[r.rank] = true;
-    g->hyp[r.rank] = r;
     group_maybe_publish(st, g);
 }
 
