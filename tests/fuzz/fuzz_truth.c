@@ -18,10 +18,10 @@
 
 #include "fuzz_input.h"
 #include "lcm_bridge.h"
-#include "microdrive_truth_death_t.h"
-#include "microdrive_truth_session_t.h"
-#include "microdrive_truth_spikes_t.h"
-#include "microdrive_truth_state_t.h"
+#include "mdlcm_truth_death_t.h"
+#include "mdlcm_truth_session_t.h"
+#include "mdlcm_truth_spikes_t.h"
+#include "mdlcm_truth_state_t.h"
 
 static uint64_t g_sink_calls;
 
@@ -70,30 +70,30 @@ static int sink(void *ctx, const char *channel, int64_t utime, const uint8_t *da
         FUZZ_CHECK(ne >= 0 && ne <= (int64_t)LB_MAX_ELECTRODES);
         FUZZ_CHECK(nn >= 0 && nn <= (int64_t)LB_TRUTH_MAX_NEURONS);
         if (ne > 0 && nn > 0) {
-            microdrive_truth_session_t m;
-            FUZZ_CHECK(microdrive_truth_session_t_decode(data, 0, n, &m) == n);
+            mdlcm_truth_session_t m;
+            FUZZ_CHECK(mdlcm_truth_session_t_decode(data, 0, n, &m) == n);
             FUZZ_CHECK(m.num_electrodes == ne && m.num_neurons == nn);
-            microdrive_truth_session_t_decode_cleanup(&m);
+            mdlcm_truth_session_t_decode_cleanup(&m);
         }
     } else if (strcmp(channel, LB_CH_TRUTH_SPIKES) == 0) {
-        microdrive_truth_spikes_t m; /* a batch is published only when it holds a spike */
-        FUZZ_CHECK(microdrive_truth_spikes_t_decode(data, 0, n, &m) == n);
+        mdlcm_truth_spikes_t m; /* a batch is published only when it holds a spike */
+        FUZZ_CHECK(mdlcm_truth_spikes_t_decode(data, 0, n, &m) == n);
         FUZZ_CHECK(m.num_spikes >= 1 && m.num_spikes <= (int32_t)LB_TRUTH_SPIKE_BATCH);
-        microdrive_truth_spikes_t_decode_cleanup(&m);
+        mdlcm_truth_spikes_t_decode_cleanup(&m);
     } else if (strcmp(channel, LB_CH_TRUTH_STATE) == 0) {
         const int64_t nn = state_count(data, len);
         FUZZ_CHECK(nn >= 0 && nn <= (int64_t)LB_TRUTH_MAX_NEURONS);
         if (nn > 0) {
-            microdrive_truth_state_t m;
-            FUZZ_CHECK(microdrive_truth_state_t_decode(data, 0, n, &m) == n);
+            mdlcm_truth_state_t m;
+            FUZZ_CHECK(mdlcm_truth_state_t_decode(data, 0, n, &m) == n);
             FUZZ_CHECK(m.num_neurons == nn);
-            microdrive_truth_state_t_decode_cleanup(&m);
+            mdlcm_truth_state_t_decode_cleanup(&m);
         }
     } else {
         FUZZ_CHECK(strcmp(channel, LB_CH_TRUTH_DEATH) == 0);
-        microdrive_truth_death_t m;
-        FUZZ_CHECK(microdrive_truth_death_t_decode(data, 0, n, &m) == n);
-        microdrive_truth_death_t_decode_cleanup(&m);
+        mdlcm_truth_death_t m;
+        FUZZ_CHECK(mdlcm_truth_death_t_decode(data, 0, n, &m) == n);
+        mdlcm_truth_death_t_decode_cleanup(&m);
     }
     return 0;
 }

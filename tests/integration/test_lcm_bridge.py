@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
 """md-lcm-bridge on a crafted session (docs/telemetry.md, "Tests").
 
-    test_lcm_bridge.py --bridge BIN --dbc DBC --types DIR --work DIR
+    PYTHONPATH=<build>/common/lcm/python test_lcm_bridge.py --bridge BIN --dbc DBC --work DIR
 
 The session comes from test_lcm_fixture.py (frames encoded with cantools from
 the DBC). The bridge replays its candump log with the truth file and writes an
 LCM event log; the log is decoded with LCM's own Python bindings and the
-lcm-gen -p types, and every message is compared with what the fixture encoded:
+lcm-gen -p types (package mdlcm, on PYTHONPATH as ctest sets it), and every message is compared with what the fixture encoded:
 every telemetry frame kind (TLM_STATUS, TLM_CYCLE, TLM_TRACK + TLM_WAVE,
 TLM_HYP, TLM_SPIKES, ACT_STATUS, HALL_READING with calibrated depth, batched
 per electrode and SIM_CLOCK time, HALL_CALIB) and every truth record kind (session, neuron, spike, state,
@@ -14,7 +14,6 @@ death). Also: the log is byte-identical on a second run and when the bridge
 also publishes on memq://, event timestamps never decrease, malformed input
 is counted and not fatal, usage errors exit 2 and a missing file exits 1.
 """
-import argparse
 import json
 import math
 import os
@@ -24,9 +23,10 @@ import sys
 
 import lcm
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, "..", "..", "tools", "plots"))
-from lcm_session import hall_readings  # noqa: E402
+import mdlcm as md
+from microdrive.lcmlog import hall_readings
+from test_lcm_fixture import parse_args, write_session
+
 FAILS = []
 
 
@@ -57,7 +57,7 @@ def stats_of(stderr):
     return out
 
 
-def decode_log(path, md):
+def decode_log(path):
     classes = {"MD_STATUS": md.status_t, "MD_CYCLE": md.cycle_t, "MD_TRACKS": md.tracks_t,
                "MD_HYPOTHESES": md.hypotheses_t, "MD_SPIKES": md.spikes_t, "MD_ACTUATOR": md.actuator_t,
                "MD_HALL": md.hall_t, "MD_HALL_CALIB": md.hall_calib_t, "MD_TRUTH_SESSION": md.truth_session_t,
@@ -186,18 +186,8 @@ def check_errors(bridge, work):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--bridge", required=True)
-    ap.add_argument("--dbc", required=True)
-    ap.add_argument("--types", required=True)
-    ap.add_argument("--work", required=True)
-    a = ap.parse_args()
-    os.makedirs(a.work, exist_ok=True)
-    sys.path.insert(0, a.types)
-    import microdrive as md
-
-    subprocess.run([sys.executable, os.path.join(HERE, "test_lcm_fixture.py"), "--dbc", a.dbc, "--out", a.work],
-                   check=True)
+    a = parse_args(__doc__.split("\n")[0])
+    write_session(a)
     cand, truth = os.path.join(a.work, "candump.log"), os.path.join(a.work, "truth.jsonl")
     exp = json.load(open(os.path.join(a.work, "expected.json")))
     log1, log2, log3 = (os.path.join(a.work, f"session{i}.lcmlog") for i in (1, 2, 3))
@@ -208,7 +198,7 @@ def main():
     check(st.get("malformed") == 0 and st.get("dropped") == 0 and st.get("late") == 0 and st.get("ignored") == 0,
           "clean session: nothing malformed, dropped, late or ignored")
 
-    got = decode_log(log1, md)
+    got = decode_log(log1)
     compare_fields("MD_STATUS", got["MD_STATUS"], exp["MD_STATUS"],
                    ["electrode", "cycle", "utime", "sfsm_state", "depth_um", "target_depth_um", "snr", "num_tracks",
                     "num_hypotheses", "num_spikes", "dominant_track"])

@@ -14,16 +14,16 @@
 #include "lcm_bridge.h"
 #include "md_can.h"
 #include "md_protocol.h"
-#include "microdrive_actuator_t.h"
-#include "microdrive_hall_calib_t.h"
-#include "microdrive_hall_t.h"
-#include "microdrive_hypotheses_t.h"
-#include "microdrive_spikes_t.h"
-#include "microdrive_status_t.h"
-#include "microdrive_tracks_t.h"
-#include "microdrive_truth_session_t.h"
-#include "microdrive_truth_spikes_t.h"
-#include "microdrive_truth_state_t.h"
+#include "mdlcm_actuator_t.h"
+#include "mdlcm_hall_calib_t.h"
+#include "mdlcm_hall_t.h"
+#include "mdlcm_hypotheses_t.h"
+#include "mdlcm_spikes_t.h"
+#include "mdlcm_status_t.h"
+#include "mdlcm_tracks_t.h"
+#include "mdlcm_truth_session_t.h"
+#include "mdlcm_truth_spikes_t.h"
+#include "mdlcm_truth_state_t.h"
 #include "unity.h"
 
 #define CAP_MSGS 64
@@ -195,12 +195,12 @@ static void feed_cycle(uint8_t e, uint16_t cycle)
 static void check_status_message(void)
 {
     const int i = find(LB_CH_STATUS, 0);
-    microdrive_status_t s;
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_status_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &s));
+    mdlcm_status_t s;
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_status_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &s));
     TEST_ASSERT_EQUAL_INT64(20000000, s.utime);
     TEST_ASSERT_EQUAL_INT(1, s.electrode);
     TEST_ASSERT_EQUAL_INT(42, s.cycle);
-    TEST_ASSERT_EQUAL_INT(MICRODRIVE_STATUS_T_SFSM_NEURON_ISOLATED, s.sfsm_state);
+    TEST_ASSERT_EQUAL_INT(MDLCM_STATUS_T_SFSM_NEURON_ISOLATED, s.sfsm_state);
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 1234.5f, s.depth_um);
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 1240.0f, s.target_depth_um);
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 7.25f, s.snr);
@@ -216,8 +216,8 @@ static void check_status_message(void)
 static void check_tracks_message(void)
 {
     const int i = find(LB_CH_TRACKS, 0);
-    microdrive_tracks_t t;
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_tracks_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &t));
+    mdlcm_tracks_t t;
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_tracks_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &t));
     TEST_ASSERT_EQUAL_INT(2, t.num_tracks);
     TEST_ASSERT_EQUAL_INT(56, t.wave_len);
     TEST_ASSERT_EQUAL_INT(7, t.track_id[0]);
@@ -231,15 +231,15 @@ static void check_tracks_message(void)
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 227.0f, t.mean_wave_uv[0][55]);
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 827.0f, t.mean_wave_uv[1][27]);
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 900.0f, t.mean_wave_uv[1][28]);
-    microdrive_tracks_t_decode_cleanup(&t);
+    mdlcm_tracks_t_decode_cleanup(&t);
 }
 
 /* ... its MD_HYPOTHESES message. */
 static void check_hypotheses_message(void)
 {
     const int i = find(LB_CH_HYPOTHESES, 0);
-    microdrive_hypotheses_t h;
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_hypotheses_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &h));
+    mdlcm_hypotheses_t h;
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_hypotheses_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &h));
     TEST_ASSERT_EQUAL_INT(3, h.num_hypotheses);
     for (int r = 0; r < 3; ++r) {
         TEST_ASSERT_EQUAL_INT(r, h.rank[r]); /* sorted by rank whatever the arrival order */
@@ -247,23 +247,23 @@ static void check_hypotheses_message(void)
     }
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, -0.5f, h.log_prob[0]);
     TEST_ASSERT_EQUAL_INT(3, h.model_g[2]);
-    microdrive_hypotheses_t_decode_cleanup(&h);
+    mdlcm_hypotheses_t_decode_cleanup(&h);
 }
 
 /* ... its MD_SPIKES message. */
 static void check_spikes_message(void)
 {
     const int i = find(LB_CH_SPIKES, 0);
-    microdrive_spikes_t sp;
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_spikes_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &sp));
+    mdlcm_spikes_t sp;
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_spikes_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &sp));
     TEST_ASSERT_EQUAL_INT(13, sp.num_spikes);
     TEST_ASSERT_EQUAL_INT(50, sp.sample[0]);
     TEST_ASSERT_EQUAL_INT(1050, sp.sample[10]);
     TEST_ASSERT_EQUAL_INT(5100, sp.sample[12]);
-    TEST_ASSERT_EQUAL_INT(MICRODRIVE_SPIKES_T_LABEL_OUTLIER, sp.track_id[0]);
+    TEST_ASSERT_EQUAL_INT(MDLCM_SPIKES_T_LABEL_OUTLIER, sp.track_id[0]);
     TEST_ASSERT_EQUAL_INT(7, sp.track_id[1]);
     TEST_ASSERT_EQUAL_INT64(-1, sp.interval_start_us); /* no TLM_CYCLE in this group */
-    microdrive_spikes_t_decode_cleanup(&sp);
+    mdlcm_spikes_t_decode_cleanup(&sp);
 }
 
 static void test_complete_cycle_published_at_status(void)
@@ -350,12 +350,12 @@ static void test_cycle_record_feeds_spike_times(void)
     feed_spikes(0, 4, 0, 3, 10);
     const int i = find(LB_CH_SPIKES, 0);
     TEST_ASSERT_TRUE(i >= 0);
-    microdrive_spikes_t sp;
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_spikes_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &sp));
+    mdlcm_spikes_t sp;
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_spikes_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &sp));
     TEST_ASSERT_EQUAL_INT(3, sp.num_spikes);
     TEST_ASSERT_EQUAL_INT64(48000000, sp.interval_start_us);
     TEST_ASSERT_EQUAL_INT64(30000, sp.sample_rate_hz);
-    microdrive_spikes_t_decode_cleanup(&sp);
+    mdlcm_spikes_t_decode_cleanup(&sp);
 }
 
 static void feed_calib(uint8_t e, uint8_t index, uint8_t n, float v)
@@ -370,12 +370,12 @@ static void feed_hall(uint8_t e, uint8_t seq, uint16_t code, uint32_t time_ms)
     FEED(hall_reading, HALL_READING, &r);
 }
 
-/// Decodes the k-th MD_HALL message into *h (clean up with microdrive_hall_t_decode_cleanup).
-static void decode_hall(int k, microdrive_hall_t *h)
+/// Decodes the k-th MD_HALL message into *h (clean up with mdlcm_hall_t_decode_cleanup).
+static void decode_hall(int k, mdlcm_hall_t *h)
 {
     const int i = find(LB_CH_HALL, k);
     TEST_ASSERT_TRUE(i >= 0);
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_hall_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], h));
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_hall_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], h));
     TEST_ASSERT_EQUAL_INT64(g_cap.utime[i], h->utime);
 }
 
@@ -399,7 +399,7 @@ static void test_hall_calibration_and_reading(void)
     lb_flush(g_st);
     TEST_ASSERT_EQUAL_INT(2, count(LB_CH_HALL));
 
-    microdrive_hall_t h;
+    mdlcm_hall_t h;
     decode_hall(0, &h);
     TEST_ASSERT_FALSE(h.calibrated);
     TEST_ASSERT_EQUAL_INT(1, h.num_readings);
@@ -407,7 +407,7 @@ static void test_hall_calibration_and_reading(void)
     TEST_ASSERT_EQUAL_INT(40000, h.raw_code[0]);
     TEST_ASSERT_EQUAL_INT64(1234, h.sample_time_ms[0]);
     TEST_ASSERT_EQUAL_DOUBLE(0.0, h.depth_um[0]);
-    microdrive_hall_t_decode_cleanup(&h);
+    mdlcm_hall_t_decode_cleanup(&h);
     decode_hall(1, &h);
     TEST_ASSERT_TRUE(h.calibrated);
     TEST_ASSERT_EQUAL_INT(1, h.electrode);
@@ -420,15 +420,15 @@ static void test_hall_calibration_and_reading(void)
         const double x = ((double)h.raw_code[k] - 32768.0) / 16384.0;
         TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1000.0 + 400.0 * x - 8.0 * x * x, h.depth_um[k]);
     }
-    microdrive_hall_t_decode_cleanup(&h);
+    mdlcm_hall_t_decode_cleanup(&h);
 
-    microdrive_hall_calib_t c;
+    mdlcm_hall_calib_t c;
     const int i = find(LB_CH_HALL_CALIB, 0);
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_hall_calib_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &c));
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_hall_calib_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &c));
     TEST_ASSERT_EQUAL_INT(3, c.num_coeffs);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, -8.0, c.coeff_um[2]);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 16384.0, c.code_half);
-    microdrive_hall_calib_t_decode_cleanup(&c);
+    mdlcm_hall_calib_t_decode_cleanup(&c);
 }
 
 /* One hall_t per electrode and clock value: the readings of each electrode in
@@ -446,7 +446,7 @@ static void test_hall_batches(void)
     TEST_ASSERT_EQUAL_INT(0, count(LB_CH_HALL));
     feed_clock(2000u);
     TEST_ASSERT_EQUAL_INT(2, count(LB_CH_HALL));
-    microdrive_hall_t h;
+    mdlcm_hall_t h;
     decode_hall(0, &h);
     TEST_ASSERT_EQUAL_INT64(1000, h.utime);
     TEST_ASSERT_EQUAL_INT(0, h.electrode);
@@ -456,14 +456,14 @@ static void test_hall_batches(void)
     TEST_ASSERT_EQUAL_INT(0, h.seq[2]);
     TEST_ASSERT_EQUAL_INT(102, h.raw_code[2]);
     TEST_ASSERT_EQUAL_INT64(3, h.sample_time_ms[2]);
-    microdrive_hall_t_decode_cleanup(&h);
+    mdlcm_hall_t_decode_cleanup(&h);
     decode_hall(1, &h);
     TEST_ASSERT_EQUAL_INT(2, h.electrode);
     TEST_ASSERT_EQUAL_INT(3, h.num_readings);
     TEST_ASSERT_EQUAL_INT(200, h.raw_code[0]);
-    microdrive_hall_t_decode_cleanup(&h);
+    mdlcm_hall_t_decode_cleanup(&h);
 
-    const int full = MICRODRIVE_HALL_T_MAX_READINGS;
+    const int full = MDLCM_HALL_T_MAX_READINGS;
     for (int k = 0; k < full + 5; ++k) {
         feed_hall(0, (uint8_t)k, (uint16_t)k, (uint32_t)k);
     }
@@ -472,7 +472,7 @@ static void test_hall_batches(void)
     TEST_ASSERT_EQUAL_INT(full, h.num_readings);
     TEST_ASSERT_EQUAL_INT64(2000, h.utime);
     TEST_ASSERT_EQUAL_INT(full - 1, h.raw_code[full - 1]);
-    microdrive_hall_t_decode_cleanup(&h);
+    mdlcm_hall_t_decode_cleanup(&h);
     feed_hall(LB_MAX_ELECTRODES, 0, 0, 0); /* beyond the bridge's electrodes: counted, not kept */
     TEST_ASSERT_EQUAL_UINT64(1, lb_stats(g_st)->dropped);
     lb_flush(g_st);
@@ -480,7 +480,7 @@ static void test_hall_batches(void)
     decode_hall(3, &h);
     TEST_ASSERT_EQUAL_INT(5, h.num_readings);
     TEST_ASSERT_EQUAL_INT(full + 4, h.raw_code[4]);
-    microdrive_hall_t_decode_cleanup(&h);
+    mdlcm_hall_t_decode_cleanup(&h);
     lb_flush(g_st);
     TEST_ASSERT_EQUAL_INT(4, count(LB_CH_HALL));
 }
@@ -500,11 +500,11 @@ static void test_hall_batches_frame_time(void)
     md_frame_t beat = frame_of(MD_CAN_HEARTBEAT_CTRL_FRAME_ID, hb, sizeof hb);
     lb_feed_frame(g_st, &beat, 510);
     TEST_ASSERT_EQUAL_INT(1, count(LB_CH_HALL));
-    microdrive_hall_t h;
+    mdlcm_hall_t h;
     decode_hall(0, &h);
     TEST_ASSERT_EQUAL_INT64(500, h.utime);
     TEST_ASSERT_EQUAL_INT(2, h.num_readings);
-    microdrive_hall_t_decode_cleanup(&h);
+    mdlcm_hall_t_decode_cleanup(&h);
     lb_feed_frame(g_st, &f, 520);
     lb_flush(g_st);
     TEST_ASSERT_EQUAL_INT(2, count(LB_CH_HALL));
@@ -521,10 +521,10 @@ static void test_actuator_status(void)
                                     .steps_remaining = 65535};
     FEED(act_status, ACT_STATUS, &a);
     const int i = find(LB_CH_ACTUATOR, 0);
-    microdrive_actuator_t m;
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_actuator_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &m));
+    mdlcm_actuator_t m;
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_actuator_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &m));
     TEST_ASSERT_EQUAL_INT64(777, m.utime);
-    TEST_ASSERT_EQUAL_INT(MICRODRIVE_ACTUATOR_T_STATE_STALLED, m.state);
+    TEST_ASSERT_EQUAL_INT(MDLCM_ACTUATOR_T_STATE_STALLED, m.state);
     TEST_ASSERT_EQUAL_INT(200, m.cmd_seq);
     TEST_ASSERT_EQUAL_INT(2, m.end_stops);
     TEST_ASSERT_EQUAL_INT(40000, m.steps_done);
@@ -608,36 +608,35 @@ static void test_truth_lines(void)
     TEST_ASSERT_EQUAL_INT(0, lb_feed_truth_line(g_st, state));
     TEST_ASSERT_EQUAL_INT(2, count(LB_CH_TRUTH_SPIKES));
 
-    microdrive_truth_session_t s;
+    mdlcm_truth_session_t s;
     int i = find(LB_CH_TRUTH_SESSION, 0);
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i],
-                          microdrive_truth_session_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &s));
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_truth_session_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &s));
     TEST_ASSERT_EQUAL_INT64(3, s.seed);
     TEST_ASSERT_EQUAL_INT(2, s.num_electrodes);
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 7.5f, s.bg_rms_uv[1]);
     TEST_ASSERT_EQUAL_INT(1, s.num_neurons);
     TEST_ASSERT_EQUAL_INT(4, s.neuron[0]);
     TEST_ASSERT_EQUAL_STRING("triphasic", s.shape[0]);
-    microdrive_truth_session_t_decode_cleanup(&s);
+    mdlcm_truth_session_t_decode_cleanup(&s);
 
-    microdrive_truth_spikes_t b;
+    mdlcm_truth_spikes_t b;
     i = find(LB_CH_TRUTH_SPIKES, 0);
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_truth_spikes_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &b));
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_truth_spikes_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &b));
     TEST_ASSERT_EQUAL_INT(1, b.num_spikes);
     TEST_ASSERT_EQUAL_INT64(60000, b.sample[0]);
     TEST_ASSERT_EQUAL_INT64(2000000, b.utime);
-    microdrive_truth_spikes_t_decode_cleanup(&b);
+    mdlcm_truth_spikes_t_decode_cleanup(&b);
 
-    microdrive_truth_state_t st;
+    mdlcm_truth_state_t st;
     i = find(LB_CH_TRUTH_STATE, 0);
-    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], microdrive_truth_state_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &st));
+    TEST_ASSERT_EQUAL_INT((int)g_cap.len[i], mdlcm_truth_state_t_decode(g_cap.data[i], 0, (int)g_cap.len[i], &st));
     TEST_ASSERT_EQUAL_INT64(20500000, st.utime);
     TEST_ASSERT_EQUAL_STRING("interval 2", st.label);
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 1019.96, st.tip_um);
     TEST_ASSERT_EQUAL_INT(1, st.num_neurons);
     TEST_ASSERT_FALSE(st.alive[0]);
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 1205.5f, st.snr_peak_depth_um[0]);
-    microdrive_truth_state_t_decode_cleanup(&st);
+    mdlcm_truth_state_t_decode_cleanup(&st);
 }
 
 int main(void)

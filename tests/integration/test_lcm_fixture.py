@@ -13,6 +13,11 @@ section 6).
 writes DIR/candump.log, DIR/truth.jsonl and DIR/expected.json (the values the
 bridge must reproduce, per LCM channel). Deterministic for a given seed.
 
+The LCM tests that run this session through md-lcm-bridge (test_lcm_bridge,
+test_lcm_logplayer, test_lcm_plots) import their common part from here:
+parse_args (--bridge BIN --dbc DBC --work DIR), write_session and
+bridge_session.
+
 The story: two electrodes, 10 s intervals every 12 s. Electrode 0 advances
 towards two neurons (SNR peaks at 1200 and 1250 um): the SFSM goes spike
 search -> gradient search -> isolate -> isolated, track 1 follows neuron 0,
@@ -25,6 +30,7 @@ import json
 import math
 import os
 import random
+import subprocess
 
 import cantools
 
@@ -34,6 +40,8 @@ CYCLE_S = 12.0
 WAVE_LEN = 48          # d_w: two TLM_WAVE parts, the second padded with zeros
 K_MISS = 5
 CALIB = {"mid": 32768.0, "half": 16384.0, "c": [1000.0, 400.0]}  # depth = 1000 + 400 x
+CYCLES = 24            # the session's length and seed unless told
+SEED = 7
 
 
 def truth_snr(peak, peak_depth, depth):
@@ -360,12 +368,37 @@ def plant_frames(w, els, k, t1, exp):
             e.hall_seq = (e.hall_seq + 1) % 256
 
 
+def parse_args(description):
+    """The command line of the LCM tests on this session: --bridge BIN --dbc DBC --work DIR (made if missing)."""
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--bridge", required=True, help="md-lcm-bridge")
+    ap.add_argument("--dbc", required=True, help="common/protocol/microdrive.dbc")
+    ap.add_argument("--work", required=True, help="folder for the session and what is made of it")
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    return a
+
+
+def write_session(a):
+    """The session (CYCLES, SEED) into a.work: candump.log, truth.jsonl, expected.json."""
+    make_session(cantools.database.load_file(a.dbc), a.work, CYCLES, SEED)
+
+
+def bridge_session(a, name="session.lcmlog"):
+    """The session written into a.work and run through md-lcm-bridge into the LCM log a.work/name; its path."""
+    write_session(a)
+    log = os.path.join(a.work, name)
+    subprocess.run([a.bridge, "--quiet", "--from-log", os.path.join(a.work, "candump.log"), "--truth",
+                    os.path.join(a.work, "truth.jsonl"), "--write-log", log], check=True)
+    return log
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dbc", required=True)
     ap.add_argument("--out", required=True)
-    ap.add_argument("--cycles", type=int, default=24)
-    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--cycles", type=int, default=CYCLES)
+    ap.add_argument("--seed", type=int, default=SEED)
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     make_session(cantools.database.load_file(a.dbc), a.out, a.cycles, a.seed)

@@ -4,16 +4,15 @@
 Run inside a private network namespace (LCM's UDP multicast stays on its
 loopback):
 
-    netns-run.sh PYTHON test_lcm_logplayer.py --bridge BIN --dbc DBC --types DIR --work DIR
+    PYTHONPATH=<build>/common/lcm/python netns-run.sh PYTHON test_lcm_logplayer.py --bridge BIN --dbc DBC --work DIR
 
 The crafted session (test_lcm_fixture.py) goes through md-lcm-bridge into an
 event log; lcm-logplayer plays it (100x speed) on udpm://239.255.76.67:7667?ttl=0
 while a Python subscriber (LCM's bindings) and lcm-logger listen. Passes when
 the subscriber received every event of the log, in order and byte-identical,
-each one decoding with its lcm-gen type, and lcm-logger's file holds the same
+each one decoding with its lcm-gen type (package mdlcm), and lcm-logger's file holds the same
 events.
 """
-import argparse
 import os
 import signal
 import subprocess
@@ -23,7 +22,10 @@ import time
 
 import lcm
 
-HERE = os.path.dirname(os.path.abspath(__file__))
+import mdlcm as md
+from microdrive.lcmlog import CHANNELS
+from test_lcm_fixture import bridge_session, parse_args
+
 URL = "udpm://239.255.76.67:7667?ttl=0"
 SPEED = "100"
 
@@ -32,17 +34,7 @@ def events(path):
     return [(ev.channel, bytes(ev.data)) for ev in lcm.EventLog(path, "r")]
 
 
-def make_log(a):
-    """The crafted session through md-lcm-bridge into an event log; its path."""
-    subprocess.run([sys.executable, os.path.join(HERE, "test_lcm_fixture.py"), "--dbc", a.dbc, "--out", a.work],
-                   check=True)
-    log = os.path.join(a.work, "session.lcmlog")
-    subprocess.run([a.bridge, "--quiet", "--from-log", os.path.join(a.work, "candump.log"), "--truth",
-                    os.path.join(a.work, "truth.jsonl"), "--write-log", log], check=True)
-    return log
-
-
-def play(log, recorded, want, channels, md):
+def play(log, recorded, want):
     """lcm-logplayer plays `log` while lcm-logger writes `recorded` and a
     subscriber collects (channel, bytes); returns (player, seconds, got, decode errors)."""
     # lcm-logger 1.3.1 documents -l but only accepts the long form
@@ -53,7 +45,7 @@ def play(log, recorded, want, channels, md):
     def on_msg(channel, data):
         got.append((channel, bytes(data)))
         try:
-            getattr(md, channels[channel]).decode(data)
+            getattr(md, CHANNELS[channel]).decode(data)
         except Exception as exc:  # noqa: BLE001 - any decode failure is a test failure
             decode_errors.append(f"{channel}: {exc}")
 
@@ -82,22 +74,11 @@ def play(log, recorded, want, channels, md):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--bridge", required=True)
-    ap.add_argument("--dbc", required=True)
-    ap.add_argument("--types", required=True)
-    ap.add_argument("--work", required=True)
-    a = ap.parse_args()
-    os.makedirs(a.work, exist_ok=True)
-    sys.path.insert(0, a.types)
-    sys.path.insert(0, os.path.join(HERE, "..", "..", "tools", "plots"))
-    from lcm_session import CHANNELS
-    import microdrive as md
-
-    log = make_log(a)
+    a = parse_args(__doc__.split("\n")[0])
+    log = bridge_session(a)
     want = events(log)
     recorded = os.path.join(a.work, "recorded.lcmlog")
-    player, played_s, got, decode_errors = play(log, recorded, want, CHANNELS, md)
+    player, played_s, got, decode_errors = play(log, recorded, want)
 
     fails = []
     if player.returncode != 0:

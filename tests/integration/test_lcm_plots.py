@@ -1,16 +1,16 @@
 #!/usr/bin/env python3
 """tools/plots/plot_session.py draws every figure from a session's LCM log.
 
-    test_lcm_plots.py --bridge BIN --dbc DBC --types DIR --work DIR
+    PYTHONPATH=<build>/common/lcm/python test_lcm_plots.py --bridge BIN --dbc DBC --work DIR
 
 The crafted session (test_lcm_fixture.py) goes through md-lcm-bridge; the
 plot script must write tracks_pc.png, waveforms.png, status.png,
 hypotheses.png and truth.png, each a real PNG with ink on it (not a blank
 canvas) whose titles and legends fit inside it (plot_session.check_layout,
-with a session label as long as a real one), once with the build's lcm-gen -p types and once generating them
-itself with lcm-gen; a log without telemetry must exit 1.
+with a session label as long as a real one), once given the build's lcm-gen -p types with --types (the
+folder of the package mdlcm that ctest puts on PYTHONPATH) and once generating them itself with lcm-gen
+(neither --types, PYTHONPATH nor MD_LCM_TYPES); a log without telemetry must exit 1.
 """
-import argparse
 import os
 import struct
 import subprocess
@@ -19,8 +19,12 @@ import sys
 import matplotlib.image as mpimg
 import numpy as np
 
+import mdlcm
+from test_lcm_fixture import bridge_session, parse_args
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 PLOT = os.path.join(HERE, "..", "..", "tools", "plots", "plot_session.py")
+BUILD_TYPES = os.path.dirname(os.path.dirname(os.path.abspath(mdlcm.__file__)))
 PNGS = ["tracks_pc.png", "waveforms.png", "status.png", "hypotheses.png", "truth.png"]
 
 
@@ -52,23 +56,14 @@ def check_pngs(out, fails):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--bridge", required=True)
-    ap.add_argument("--dbc", required=True)
-    ap.add_argument("--types", required=True)
-    ap.add_argument("--work", required=True)
-    a = ap.parse_args()
-    os.makedirs(a.work, exist_ok=True)
-    subprocess.run([sys.executable, os.path.join(HERE, "test_lcm_fixture.py"), "--dbc", a.dbc, "--out", a.work],
-                   check=True)
-    log = os.path.join(a.work, "session.lcmlog")
-    subprocess.run([a.bridge, "--quiet", "--from-log", os.path.join(a.work, "candump.log"), "--truth",
-                    os.path.join(a.work, "truth.jsonl"), "--write-log", log], check=True)
+    a = parse_args(__doc__.split("\n")[0])
+    log = bridge_session(a)
     fails = []
-    for label, extra in (("build types", ["--types", a.types]), ("lcm-gen on the fly", [])):
+    no_types = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "MD_LCM_TYPES")}
+    for label, extra in (("build types", ["--types", BUILD_TYPES]), ("lcm-gen on the fly", [])):
         out = os.path.join(a.work, "plots-" + label.split()[0])
         p = subprocess.run([sys.executable, PLOT, log, "--out", out, "--label", "single_neuron seed 1"] + extra,
-                           capture_output=True, text=True)
+                           capture_output=True, text=True, env=no_types)
         print(f"plot_session ({label}): exit {p.returncode}")
         if p.returncode != 0:
             fails.append(f"plot_session ({label}) exit {p.returncode}: {p.stderr[-800:]}")
@@ -79,8 +74,8 @@ def main():
         check_pngs(out, fails)
     empty = os.path.join(a.work, "empty.lcmlog")
     subprocess.run([a.bridge, "--quiet", "--from-log", "/dev/null", "--write-log", empty], check=True)
-    p = subprocess.run([sys.executable, PLOT, empty, "--out", os.path.join(a.work, "plots-empty"), "--types",
-                        a.types], capture_output=True, text=True)
+    p = subprocess.run([sys.executable, PLOT, empty, "--out", os.path.join(a.work, "plots-empty")],
+                       capture_output=True, text=True)
     if p.returncode != 1:
         fails.append(f"empty log: exit {p.returncode}, expected 1")
     for f in fails:

@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """microdrive-session records every session's LCM log and plots it by default.
 
-    test_lcm_session.py --bin DIR --types DIR --scenario FILE --work DIR
+    PYTHONPATH=<build>/common/lcm/python test_lcm_session.py --bin DIR --scenario FILE --work DIR
 
 Proves, on short in-process sessions (3 cycles of single_neuron):
-  * default: DIR/session.lcmlog exists, decodes with LCM's Python bindings and the lcm-gen -p types
+  * default: DIR/session.lcmlog exists, decodes with LCM's Python bindings and the lcm-gen -p types (mdlcm)
     (one MD_STATUS per cycle, MD_TRACKS/MD_HYPOTHESES/MD_SPIKES per cycle, ground truth, every HALL_READING
     of candump.log in MD_HALL, at least 10 per message), is byte-identical
     on a rerun of the same seed, and the five PNGs exist with their session label;
@@ -25,6 +25,9 @@ import time
 
 import lcm
 
+import mdlcm
+from microdrive import canlog
+
 PNGS = ["tracks_pc.png", "waveforms.png", "status.png", "hypotheses.png", "truth.png"]
 CYCLES = 3
 
@@ -37,13 +40,10 @@ def session(a, out, *extra, env=None):
     return p.returncode, p.stderr
 
 
-def decode(a, path):
-    sys.path.insert(0, a.types)
-    import microdrive  # noqa: E402  (lcm-gen -p output)
-    types = {"MD_STATUS": microdrive.status_t, "MD_TRACKS": microdrive.tracks_t,
-             "MD_HYPOTHESES": microdrive.hypotheses_t, "MD_SPIKES": microdrive.spikes_t,
-             "MD_TRUTH_STATE": microdrive.truth_state_t, "MD_TRUTH_SESSION": microdrive.truth_session_t,
-             "MD_HALL": microdrive.hall_t}
+def decode(path):
+    types = {"MD_STATUS": mdlcm.status_t, "MD_TRACKS": mdlcm.tracks_t, "MD_HYPOTHESES": mdlcm.hypotheses_t,
+             "MD_SPIKES": mdlcm.spikes_t, "MD_TRUTH_STATE": mdlcm.truth_state_t,
+             "MD_TRUTH_SESSION": mdlcm.truth_session_t, "MD_HALL": mdlcm.hall_t}
     got = {ch: [] for ch in types}
     for ev in lcm.EventLog(path, "r"):
         if ev.channel in types:
@@ -60,7 +60,7 @@ def check_default(a, fails):
     log = os.path.join(out, "session.lcmlog")
     if "LCM log" not in err or "plots" not in err:
         fails.append(f"default session does not name its LCM log and plots: {err[-400:]}")
-    got = decode(a, log)
+    got = decode(log)
     n = {ch: len(v) for ch, v in got.items()}
     print(f"  default: {n}")
     for ch in ("MD_STATUS", "MD_TRACKS", "MD_HYPOTHESES", "MD_SPIKES"):
@@ -83,12 +83,8 @@ def check_default(a, fails):
 def check_hall(msgs, candump, fails):
     """Every HALL_READING of candump.log is in MD_HALL once, in order, with its fields, batched (the bridge
     collects an electrode's readings between two SIM_CLOCK frames, docs/telemetry.md "Hall readings")."""
-    frames = []
-    for line in open(candump):
-        ident, _, data = line.split()[2].partition("#")
-        if ident == "300":
-            b = bytes.fromhex(data)
-            frames.append((b[0], b[1], int.from_bytes(b[2:4], "little"), int.from_bytes(b[4:8], "little")))
+    frames = [(m.signals["Electrode"], m.signals["Seq"], m.signals["RawCode"], m.signals["SampleTime_ms"])
+              for m in canlog.messages(candump, {"HALL_READING"})]
     readings = [(m.electrode, m.seq[k], m.raw_code[k], m.sample_time_ms[k])
                 for m in msgs for k in range(m.num_readings)]
     key = lambda r: r[0]  # noqa: E731  (order per electrode; electrodes interleave differently)
@@ -134,7 +130,7 @@ def check_params(a, fails):
         if rc != 0:
             fails.append(f"--param tracker={tracker}: exit {rc}: {err[-400:]}")
             continue
-        hyps[tracker] = [m.num_hypotheses for m in decode(a, os.path.join(out, "session.lcmlog"))["MD_STATUS"]]
+        hyps[tracker] = [m.num_hypotheses for m in decode(os.path.join(out, "session.lcmlog"))["MD_STATUS"]]
     print(f"  hypotheses per cycle: {hyps}")
     if hyps.get(1) and max(hyps[1]) > 1:
         fails.append(f"--param tracker=1 (MAP-NN) kept {max(hyps[1])} hypotheses: not applied")
@@ -165,7 +161,6 @@ def check_params(a, fails):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--bin", required=True)
-    ap.add_argument("--types", required=True)
     ap.add_argument("--scenario", required=True)
     ap.add_argument("--work", required=True)
     a = ap.parse_args()

@@ -9,12 +9,12 @@
 #include <cjson/cJSON.h>
 
 #include "lb_internal.h"
-#include "microdrive_truth_death_t.h"
-#include "microdrive_truth_session_t.h"
-#include "microdrive_truth_spikes_t.h"
-#include "microdrive_truth_state_t.h"
+#include "mdlcm_truth_death_t.h"
+#include "mdlcm_truth_session_t.h"
+#include "mdlcm_truth_spikes_t.h"
+#include "mdlcm_truth_state_t.h"
 
-_Static_assert(LB_TRUTH_SPIKE_BATCH == MICRODRIVE_TRUTH_SPIKES_T_MAX_SPIKES, "batch size is the LCM constant");
+_Static_assert(LB_TRUTH_SPIKE_BATCH == MDLCM_TRUTH_SPIKES_T_MAX_SPIKES, "batch size is the LCM constant");
 
 /// Number member of obj, or fallback when absent or not a number.
 static double num(const cJSON *obj, const char *key, double fallback)
@@ -158,21 +158,21 @@ static void publish_session(lb_t *st)
     for (int32_t i = 0; i < s->n_neurons; ++i) {
         shapes[i] = s->shape[i];
     }
-    const microdrive_truth_session_t m = {.utime = 0,
-                                          .seed = s->seed,
-                                          .sample_rate_hz = s->sample_rate_hz,
-                                          .num_electrodes = s->n_electrodes,
-                                          .bg_rms_uv = s->bg_rms_uv,
-                                          .num_neurons = s->n_neurons,
-                                          .electrode = s->electrode,
-                                          .neuron = s->neuron,
-                                          .x_um = s->x_um,
-                                          .y_um = s->y_um,
-                                          .depth_um = s->depth_um,
-                                          .amp_uv = s->amp_uv,
-                                          .rate_hz = s->rate_hz,
-                                          .shape = shapes};
-    LB_PUBLISH(st, LB_CH_TRUTH_SESSION, microdrive_truth_session_t, &m);
+    const mdlcm_truth_session_t m = {.utime = 0,
+                                     .seed = s->seed,
+                                     .sample_rate_hz = s->sample_rate_hz,
+                                     .num_electrodes = s->n_electrodes,
+                                     .bg_rms_uv = s->bg_rms_uv,
+                                     .num_neurons = s->n_neurons,
+                                     .electrode = s->electrode,
+                                     .neuron = s->neuron,
+                                     .x_um = s->x_um,
+                                     .y_um = s->y_um,
+                                     .depth_um = s->depth_um,
+                                     .amp_uv = s->amp_uv,
+                                     .rate_hz = s->rate_hz,
+                                     .shape = shapes};
+    LB_PUBLISH(st, LB_CH_TRUTH_SESSION, mdlcm_truth_session_t, &m);
 }
 
 static void publish_batch(lb_t *st)
@@ -181,14 +181,14 @@ static void publish_batch(lb_t *st)
     if (b->n == 0) {
         return;
     }
-    const microdrive_truth_spikes_t m = {.utime = spike_time_us(st, (double)b->sample[0]),
-                                         .electrode = b->electrode,
-                                         .sample_rate_hz = st->truth.sample_rate_hz,
-                                         .num_spikes = b->n,
-                                         .sample = b->sample,
-                                         .neuron = b->neuron,
-                                         .amp_uv = b->amp_uv};
-    LB_PUBLISH(st, LB_CH_TRUTH_SPIKES, microdrive_truth_spikes_t, &m);
+    const mdlcm_truth_spikes_t m = {.utime = spike_time_us(st, (double)b->sample[0]),
+                                    .electrode = b->electrode,
+                                    .sample_rate_hz = st->truth.sample_rate_hz,
+                                    .num_spikes = b->n,
+                                    .sample = b->sample,
+                                    .neuron = b->neuron,
+                                    .amp_uv = b->amp_uv};
+    LB_PUBLISH(st, LB_CH_TRUTH_SPIKES, mdlcm_truth_spikes_t, &m);
     b->n = 0;
 }
 
@@ -286,15 +286,15 @@ static int on_death(lb_t *st, const cJSON *root)
         !electrode_field(root, &e) || !neuron_field(root, 0, &id)) {
         return -1;
     }
-    const microdrive_truth_death_t m = {
+    const mdlcm_truth_death_t m = {
         .utime = t_us, .electrode = e, .neuron = id, .distance_um = (float)num(root, "distance_um", 0.0)};
-    LB_PUBLISH(st, LB_CH_TRUTH_DEATH, microdrive_truth_death_t, &m);
+    LB_PUBLISH(st, LB_CH_TRUTH_DEATH, mdlcm_truth_death_t, &m);
     return 0;
 }
 
 /// Fills row i of the state arrays from one element of "neurons"; false if
 /// its neuron id does not fit the LCM field.
-static bool state_row(const cJSON *n, microdrive_truth_state_t *m, int32_t i)
+static bool state_row(const cJSON *n, mdlcm_truth_state_t *m, int32_t i)
 {
     const cJSON *alive = cJSON_GetObjectItemCaseSensitive(n, "alive");
     if (!neuron_field(n, -1, &m->neuron[i])) {
@@ -323,17 +323,17 @@ static int on_state(lb_t *st, const cJSON *root)
     static float depth[LB_TRUTH_MAX_NEURONS], dist[LB_TRUTH_MAX_NEURONS], snr[LB_TRUTH_MAX_NEURONS];
     static float peak_depth[LB_TRUTH_MAX_NEURONS], peak[LB_TRUTH_MAX_NEURONS];
     static int8_t alive[LB_TRUTH_MAX_NEURONS];
-    microdrive_truth_state_t m = {.utime = t_us,
-                                  .electrode = e,
-                                  .label = (char *)(cJSON_IsString(label) ? label->valuestring : ""),
-                                  .tip_um = num(root, "tip_um", 0.0),
-                                  .neuron = neuron,
-                                  .depth_um = depth,
-                                  .alive = alive,
-                                  .distance_um = dist,
-                                  .snr = snr,
-                                  .snr_peak_depth_um = peak_depth,
-                                  .snr_peak = peak};
+    mdlcm_truth_state_t m = {.utime = t_us,
+                             .electrode = e,
+                             .label = (char *)(cJSON_IsString(label) ? label->valuestring : ""),
+                             .tip_um = num(root, "tip_um", 0.0),
+                             .neuron = neuron,
+                             .depth_um = depth,
+                             .alive = alive,
+                             .distance_um = dist,
+                             .snr = snr,
+                             .snr_peak_depth_um = peak_depth,
+                             .snr_peak = peak};
     const cJSON *n = NULL;
     cJSON_ArrayForEach(n, neurons)
     {
@@ -345,7 +345,7 @@ static int on_state(lb_t *st, const cJSON *root)
             return -1;
         }
     }
-    LB_PUBLISH(st, LB_CH_TRUTH_STATE, microdrive_truth_state_t, &m);
+    LB_PUBLISH(st, LB_CH_TRUTH_STATE, mdlcm_truth_state_t, &m);
     return 0;
 }
 

@@ -6,14 +6,14 @@
 #include <string.h>
 
 #include "lb_internal.h"
-#include "microdrive_actuator_t.h"
-#include "microdrive_cycle_t.h"
-#include "microdrive_hall_calib_t.h"
-#include "microdrive_hall_t.h"
-#include "microdrive_hypotheses_t.h"
-#include "microdrive_spikes_t.h"
-#include "microdrive_status_t.h"
-#include "microdrive_tracks_t.h"
+#include "mdlcm_actuator_t.h"
+#include "mdlcm_cycle_t.h"
+#include "mdlcm_hall_calib_t.h"
+#include "mdlcm_hall_t.h"
+#include "mdlcm_hypotheses_t.h"
+#include "mdlcm_spikes_t.h"
+#include "mdlcm_status_t.h"
+#include "mdlcm_tracks_t.h"
 #include "md_protocol.h"
 
 #define LB_CALIB_BIT_MID (1u << 16)
@@ -87,7 +87,7 @@ static const lb_wave_t *wave_find(const lb_group_t *g, uint16_t track_id)
 
 static void publish_tracks(lb_t *st, const lb_group_t *g)
 {
-    microdrive_tracks_t m = {.utime = g->utime, .electrode = (int8_t)(g - st->group), .cycle = g->cycle};
+    mdlcm_tracks_t m = {.utime = g->utime, .electrode = (int8_t)(g - st->group), .cycle = g->cycle};
     size_t idx[LB_MAX_TRACKS];
     size_t n = 0u;
     for (size_t i = 0u; i < LB_MAX_TRACKS; ++i) {
@@ -130,7 +130,7 @@ static void publish_tracks(lb_t *st, const lb_group_t *g)
                 m.mean_wave_uv[k][s] = (float)w->wave_uv[s];
             }
         }
-        LB_PUBLISH(st, LB_CH_TRACKS, microdrive_tracks_t, &m);
+        LB_PUBLISH(st, LB_CH_TRACKS, mdlcm_tracks_t, &m);
     } else {
         st->stats.sink_errors++;
     }
@@ -140,7 +140,7 @@ static void publish_tracks(lb_t *st, const lb_group_t *g)
 
 static void publish_hypotheses(lb_t *st, const lb_group_t *g)
 {
-    microdrive_hypotheses_t m = {.utime = g->utime, .electrode = (int8_t)(g - st->group), .cycle = g->cycle};
+    mdlcm_hypotheses_t m = {.utime = g->utime, .electrode = (int8_t)(g - st->group), .cycle = g->cycle};
     size_t n = 0u;
     for (size_t i = 0u; i < LB_MAX_HYPS; ++i) {
         n += g->hyp_have[i] ? 1u : 0u;
@@ -163,7 +163,7 @@ static void publish_hypotheses(lb_t *st, const lb_group_t *g)
                 ++k;
             }
         }
-        LB_PUBLISH(st, LB_CH_HYPOTHESES, microdrive_hypotheses_t, &m);
+        LB_PUBLISH(st, LB_CH_HYPOTHESES, mdlcm_hypotheses_t, &m);
     } else {
         st->stats.sink_errors++;
     }
@@ -172,7 +172,7 @@ static void publish_hypotheses(lb_t *st, const lb_group_t *g)
 
 static void publish_spikes(lb_t *st, const lb_group_t *g)
 {
-    microdrive_spikes_t m = {.utime = g->utime, .electrode = (int8_t)(g - st->group), .cycle = g->cycle};
+    mdlcm_spikes_t m = {.utime = g->utime, .electrode = (int8_t)(g - st->group), .cycle = g->cycle};
     m.interval_start_us = g->have_cycle ? (int64_t)g->cyc.start_time_us : -1;
     m.sample_rate_hz = g->have_cycle ? (int64_t)g->cyc.sample_rate_hz : 0;
     size_t n = 0u;
@@ -191,7 +191,7 @@ static void publish_spikes(lb_t *st, const lb_group_t *g)
                 ++k;
             }
         }
-        LB_PUBLISH(st, LB_CH_SPIKES, microdrive_spikes_t, &m);
+        LB_PUBLISH(st, LB_CH_SPIKES, mdlcm_spikes_t, &m);
     } else {
         st->stats.sink_errors++;
     }
@@ -296,20 +296,20 @@ static void on_status(lb_t *st, const md_frame_t *f)
     st->stats.telemetry++;
     g->have_status = true;
     g->status = r;
-    const microdrive_status_t m = {.utime = g->utime,
-                                   .electrode = (int8_t)r.electrode,
-                                   .cycle = r.cycle,
-                                   .sfsm_state = (int8_t)r.sfsm_state,
-                                   .depth_um = r.depth_um,
-                                   .target_depth_um = r.target_depth_um,
-                                   .snr = r.snr,
-                                   .iqm = r.iqm,
-                                   .dominant_track = r.dominant_track,
-                                   .num_tracks = r.num_tracks,
-                                   .num_hypotheses = r.num_hypotheses,
-                                   .num_spikes = r.num_spikes,
-                                   .flags = r.flags};
-    LB_PUBLISH(st, LB_CH_STATUS, microdrive_status_t, &m);
+    const mdlcm_status_t m = {.utime = g->utime,
+                              .electrode = (int8_t)r.electrode,
+                              .cycle = r.cycle,
+                              .sfsm_state = (int8_t)r.sfsm_state,
+                              .depth_um = r.depth_um,
+                              .target_depth_um = r.target_depth_um,
+                              .snr = r.snr,
+                              .iqm = r.iqm,
+                              .dominant_track = r.dominant_track,
+                              .num_tracks = r.num_tracks,
+                              .num_hypotheses = r.num_hypotheses,
+                              .num_spikes = r.num_spikes,
+                              .flags = r.flags};
+    LB_PUBLISH(st, LB_CH_STATUS, mdlcm_status_t, &m);
     group_maybe_publish(st, g);
 }
 
@@ -329,15 +329,15 @@ static void on_cycle(lb_t *st, const md_frame_t *f)
         g->have_cycle = true;
         g->cyc = r;
     }
-    const microdrive_cycle_t m = {.utime = g->utime,
-                                  .electrode = (int8_t)r.electrode,
-                                  .phase = (int8_t)r.phase,
-                                  .cycle = r.cycle,
-                                  .interval_id = r.interval_id,
-                                  .sample_rate_hz = r.sample_rate_hz,
-                                  .num_samples = r.num_samples,
-                                  .start_time_us = (int64_t)r.start_time_us};
-    LB_PUBLISH(st, LB_CH_CYCLE, microdrive_cycle_t, &m);
+    const mdlcm_cycle_t m = {.utime = g->utime,
+                             .electrode = (int8_t)r.electrode,
+                             .phase = (int8_t)r.phase,
+                             .cycle = r.cycle,
+                             .interval_id = r.interval_id,
+                             .sample_rate_hz = r.sample_rate_hz,
+                             .num_samples = r.num_samples,
+                             .start_time_us = (int64_t)r.start_time_us};
+    LB_PUBLISH(st, LB_CH_CYCLE, mdlcm_cycle_t, &m);
     group_maybe_publish(st, g);
 }
 
@@ -462,14 +462,14 @@ static void on_act_status(lb_t *st, const md_frame_t *f)
         return;
     }
     st->stats.telemetry++;
-    const microdrive_actuator_t m = {.utime = lb_now_us(st),
-                                     .electrode = (int8_t)r.electrode,
-                                     .state = (int8_t)r.state,
-                                     .cmd_seq = r.cmd_seq,
-                                     .end_stops = (int8_t)r.end_stops,
-                                     .steps_done = r.steps_done,
-                                     .steps_remaining = r.steps_remaining};
-    LB_PUBLISH(st, LB_CH_ACTUATOR, microdrive_actuator_t, &m);
+    const mdlcm_actuator_t m = {.utime = lb_now_us(st),
+                                .electrode = (int8_t)r.electrode,
+                                .state = (int8_t)r.state,
+                                .cmd_seq = r.cmd_seq,
+                                .end_stops = (int8_t)r.end_stops,
+                                .steps_done = r.steps_done,
+                                .steps_remaining = r.steps_remaining};
+    LB_PUBLISH(st, LB_CH_ACTUATOR, mdlcm_actuator_t, &m);
 }
 
 /// depth_um = sum_k c_k x^k with x = (code - code_mid) / code_half (DBC HALL_CALIB), Horner's rule.
@@ -483,7 +483,7 @@ static double calib_depth(const lb_calib_t *c, double code)
     return acc;
 }
 
-_Static_assert(LB_HALL_BATCH == MICRODRIVE_HALL_T_MAX_READINGS, "batch size is the LCM constant");
+_Static_assert(LB_HALL_BATCH == MDLCM_HALL_T_MAX_READINGS, "batch size is the LCM constant");
 
 /// Publishes electrode e's pending Hall readings as one hall_t (nothing if none).
 static void hall_publish(lb_t *st, size_t e)
@@ -492,15 +492,15 @@ static void hall_publish(lb_t *st, size_t e)
     if (b->n == 0) {
         return;
     }
-    const microdrive_hall_t m = {.utime = b->utime,
-                                 .electrode = (int8_t)e,
-                                 .calibrated = b->calibrated,
-                                 .num_readings = b->n,
-                                 .seq = b->seq,
-                                 .raw_code = b->raw_code,
-                                 .sample_time_ms = b->sample_time_ms,
-                                 .depth_um = b->depth_um};
-    LB_PUBLISH(st, LB_CH_HALL, microdrive_hall_t, &m);
+    const mdlcm_hall_t m = {.utime = b->utime,
+                            .electrode = (int8_t)e,
+                            .calibrated = b->calibrated,
+                            .num_readings = b->n,
+                            .seq = b->seq,
+                            .raw_code = b->raw_code,
+                            .sample_time_ms = b->sample_time_ms,
+                            .depth_um = b->depth_um};
+    LB_PUBLISH(st, LB_CH_HALL, mdlcm_hall_t, &m);
     b->n = 0;
 }
 
@@ -569,13 +569,13 @@ static void calib_maybe_publish(lb_t *st, lb_calib_t *c, uint8_t electrode)
     memcpy(c->pub_coeff, coeff, sizeof coeff);
     c->pub_mid = mid;
     c->pub_half = half;
-    const microdrive_hall_calib_t m = {.utime = lb_now_us(st),
-                                       .electrode = (int8_t)electrode,
-                                       .code_mid = mid,
-                                       .code_half = half,
-                                       .num_coeffs = (int16_t)c->count,
-                                       .coeff_um = c->pub_coeff};
-    LB_PUBLISH(st, LB_CH_HALL_CALIB, microdrive_hall_calib_t, &m);
+    const mdlcm_hall_calib_t m = {.utime = lb_now_us(st),
+                                  .electrode = (int8_t)electrode,
+                                  .code_mid = mid,
+                                  .code_half = half,
+                                  .num_coeffs = (int16_t)c->count,
+                                  .coeff_um = c->pub_coeff};
+    LB_PUBLISH(st, LB_CH_HALL_CALIB, mdlcm_hall_calib_t, &m);
 }
 
 static void on_hall_calib(lb_t *st, const md_frame_t *f)

@@ -1,7 +1,7 @@
 /// @file lcm_bridge.h
 /// The decoding core of md-lcm-bridge: CAN frames of the microdrive protocol
 /// (common/protocol/microdrive.dbc) in, encoded LCM messages of package
-/// microdrive (common/lcm/*.lcm) out, through a caller-provided sink. No I/O of
+/// mdlcm (common/lcm/*.lcm) out, through a caller-provided sink. No I/O of
 /// its own, so the same code serves the live bus, a candump log replay and the
 /// unit test (docs/telemetry.md has the channel table and the grouping rules).
 ///
@@ -18,18 +18,18 @@
 #include "md_frame.h"
 
 /// LCM channel names (UPPER_SNAKE; one type per channel, docs/telemetry.md).
-#define LB_CH_STATUS "MD_STATUS"                ///< microdrive.status_t
-#define LB_CH_CYCLE "MD_CYCLE"                  ///< microdrive.cycle_t
-#define LB_CH_TRACKS "MD_TRACKS"                ///< microdrive.tracks_t
-#define LB_CH_HYPOTHESES "MD_HYPOTHESES"        ///< microdrive.hypotheses_t
-#define LB_CH_SPIKES "MD_SPIKES"                ///< microdrive.spikes_t
-#define LB_CH_ACTUATOR "MD_ACTUATOR"            ///< microdrive.actuator_t
-#define LB_CH_HALL "MD_HALL"                    ///< microdrive.hall_t (readings batched)
-#define LB_CH_HALL_CALIB "MD_HALL_CALIB"        ///< microdrive.hall_calib_t
-#define LB_CH_TRUTH_SESSION "MD_TRUTH_SESSION"  ///< microdrive.truth_session_t
-#define LB_CH_TRUTH_STATE "MD_TRUTH_STATE"      ///< microdrive.truth_state_t
-#define LB_CH_TRUTH_SPIKES "MD_TRUTH_SPIKES"    ///< microdrive.truth_spikes_t
-#define LB_CH_TRUTH_DEATH "MD_TRUTH_DEATH"      ///< microdrive.truth_death_t
+#define LB_CH_STATUS "MD_STATUS"                ///< mdlcm.status_t
+#define LB_CH_CYCLE "MD_CYCLE"                  ///< mdlcm.cycle_t
+#define LB_CH_TRACKS "MD_TRACKS"                ///< mdlcm.tracks_t
+#define LB_CH_HYPOTHESES "MD_HYPOTHESES"        ///< mdlcm.hypotheses_t
+#define LB_CH_SPIKES "MD_SPIKES"                ///< mdlcm.spikes_t
+#define LB_CH_ACTUATOR "MD_ACTUATOR"            ///< mdlcm.actuator_t
+#define LB_CH_HALL "MD_HALL"                    ///< mdlcm.hall_t (readings batched)
+#define LB_CH_HALL_CALIB "MD_HALL_CALIB"        ///< mdlcm.hall_calib_t
+#define LB_CH_TRUTH_SESSION "MD_TRUTH_SESSION"  ///< mdlcm.truth_session_t
+#define LB_CH_TRUTH_STATE "MD_TRUTH_STATE"      ///< mdlcm.truth_state_t
+#define LB_CH_TRUTH_SPIKES "MD_TRUTH_SPIKES"    ///< mdlcm.truth_spikes_t
+#define LB_CH_TRUTH_DEATH "MD_TRUTH_DEATH"      ///< mdlcm.truth_death_t
 
 /// Capacities of the per-electrode cycle group (records beyond are counted in
 /// lb_stats_t.dropped and left out).

@@ -1,7 +1,7 @@
 /// @file md_lcm_bridge.c
 /// md-lcm-bridge: CAN telemetry (live bus or candump -L log) and the
 /// simulator's ground truth (JSON lines) into LCM messages of package
-/// microdrive, published on an LCM URL and/or written to an LCM event log.
+/// mdlcm, published on an LCM URL and/or written to an LCM event log.
 /// docs/telemetry.md has the channels, the time base and example commands.
 ///
 ///   md-lcm-bridge (--bus SPEC | --from-log FILE) [--truth FILE] [--lcm-url URL]

@@ -23,7 +23,7 @@ try:
     import matplotlib.pyplot as plt  # noqa: E402
     import numpy as np  # noqa: E402
 
-    from lcm_session import SFSM_STATES, hall_readings, read_log  # noqa: E402
+    from microdrive.lcmlog import SFSM_STATES, hall_readings, read_log  # noqa: E402
 except ImportError as e:
     sys.exit(f"plot_session.py: the Python module {e.name!r} is missing from {sys.executable}; the project venv "
              f"has it: run scripts/setup-venv.sh in the checkout (microdrive-session uses its .venv)")
@@ -479,7 +479,8 @@ def main():
     ap = argparse.ArgumentParser(description="Plots of a microdrive session from its LCM log")
     ap.add_argument("log")
     ap.add_argument("--out", required=True, help="directory for the PNG files (the session folder)")
-    ap.add_argument("--types", help="lcm-gen -p output dir (<build>/common/lcm/python); default: generate")
+    ap.add_argument("--types", help="lcm-gen -p output dir (<build>/common/lcm/python); default: $MD_LCM_TYPES, "
+                    "else the package mdlcm on the import path, else generated with lcm-gen")
     ap.add_argument("--quiet", action="store_true", help="do not print the files written")
     ap.add_argument("--label", default="", help="session name for the titles (e.g. 'single_neuron seed 1')")
     a = ap.parse_args()
