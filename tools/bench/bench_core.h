@@ -2,7 +2,7 @@
 /// One electrode cycle split into separately runnable stages (the stages of
 /// pipeline/interval_chain.h, the controller's unit, plus control), for the host
 /// benchmark (tools/bench/md_bench.c: wall time, callgrind instruction counts)
-/// and the Cortex-M7 benchmark (tests/target/bench_m7.c: QEMU -icount).
+/// and the Cortex-M7 benchmark (tools/bench/bench_m7.c: QEMU -icount).
 ///
 /// The interval is a 10 s synthetic trace (signal/spike_synth.h) at
 /// BENCH_FS_HZ with three neurons of different amplitude (~300 spikes).

@@ -42,7 +42,7 @@ PLAN_VERSION = 1
 
 
 def write_plan(rec_json, path):
-    """plan.bin for md-bench-m7 --replay (tests/target/bench_m7.c); returns (samples file, intervals)."""
+    """plan.bin for md-bench-m7 --replay (tools/bench/bench_m7.c); returns (samples file, intervals)."""
     with open(rec_json) as f:
         rec = json.load(f)
     if rec.get("num_channels") != 1 or rec.get("dtype") != "int16":

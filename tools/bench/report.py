@@ -225,7 +225,7 @@ def sec_counting(w, c) -> None:
       "(0.51 / 0.53) and was not kept. Clustering consistency (docs/clustering-consistency.md): Ψ MAP 72 vs ML 236, "
       "as before. Fault campaign on the final code: 450 of 450 runs hold every invariant (docs/fault-campaign.md).")
     w("")
-    w("How the M7 counts are taken: `tests/target/bench_m7.c` (image `md-bench-m7`, linked like the target "
+    w("How the M7 counts are taken: `tools/bench/bench_m7.c` (image `md-bench-m7`, linked like the target "
       "tests) runs the same stage code under `qemu-system-arm -M mps2-an500 -icount shift=0`; virtual time then "
       "advances 1 ns per instruction, and SysTick (25 MHz CPU clock) is read around each stage, so a count is "
       f"ticks × 40 (resolution 40 instructions). Check: a loop of known length measured `{cal}` "
