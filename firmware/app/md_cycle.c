@@ -454,7 +454,7 @@ static double guard(md_electrode_t *el, const md_node_t *node, const md_workspac
                     double depth, double step)
 {
     ag_unit_t unit[AG_UNITS_MAX];
-    const ag_input_t in = {unit, guard_units(ws, po, unit), depth, step};
+    const ag_input_t in = {unit, guard_units(ws, po, unit), depth, (double)el->rec_start_us * 1e-6, step};
     ag_output_t out;
     if (ag_apply(&el->guard, &in, &out) != MD_OK) {
         el->flags |= MD_TLM_F_GUARD_LIMITED;

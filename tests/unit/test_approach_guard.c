@@ -3,8 +3,9 @@
 /// (steep growth), a neuron passed at a safe lateral distance (shallow
 /// growth), noise, a unit that climbs while the electrode stands (fast, or
 /// creeping slowly as relaxing tissue carries it), artefact
-/// bursts that must not freeze the search, amp_stop, invalid input, and the
-/// robust amplitude itself.
+/// bursts that must not freeze the search, amp_stop, the depth fence, the
+/// tissue's give-back after an advance, invalid input, and the robust
+/// amplitude itself.
 #include <math.h>
 #include <string.h>
 
@@ -13,9 +14,11 @@
 
 static ag_state_t g;
 static ag_config_t cfg;
+static double clock_s; /* the latest interval's time */
 
 void setUp(void)
 {
+    clock_s = 0.0;
     ag_config_default(&cfg);
     TEST_ASSERT_EQUAL_INT(MD_OK, ag_init(&g, &cfg));
 }
@@ -29,11 +32,18 @@ static double law(double a0, double r_um, double x_um)
     return 3.0 + a0 / (1.0 + (r_um * r_um + x_um * x_um) / 900.0);
 }
 
+/* Intervals are 10 s apart. */
+static double next_time(void)
+{
+    clock_s += 10.0;
+    return clock_s;
+}
+
 /* One interval with the robust amplitude only. */
 static ag_output_t step1(double amp, double depth, double want)
 {
     const ag_unit_t u = {AG_UNIT_RAW, amp};
-    const ag_input_t in = {&u, 1u, depth, want};
+    const ag_input_t in = {&u, 1u, depth, next_time(), want};
     ag_output_t out;
     TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
     return out;
@@ -122,7 +132,7 @@ static void test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way(vo
     int retractions = 0;
     for (int k = 0; k < 30; ++k) {
         const ag_unit_t u[2] = {{AG_UNIT_RAW, 40.0}, {7u, 16.0 * pow(1.05, k)}};
-        const ag_input_t in = {u, 2u, z, 0.0};
+        const ag_input_t in = {u, 2u, z, next_time(), 0.0};
         ag_output_t out;
         TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
         if (out.action == AG_RETRACT) {
@@ -158,44 +168,135 @@ static void test_a_slow_creep_towards_a_standing_tip_adds_up_to_a_retraction(voi
     TEST_ASSERT_TRUE(closest > 15.0);
 }
 
-static void test_a_unit_saturating_at_a_ceiling_holds_the_electrode_without_retracting(void)
+/* Rules 6 alone: the tissue gives nothing back. */
+static void without_tissue_give_back(void)
 {
+    cfg.relax_frac = 1e-9;
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_init(&g, &cfg));
+}
+
+static void test_a_unit_saturating_at_its_ceiling_holds_the_electrode(void)
+{
+    /* The tissue settled; the neuron stays where it is, the SFSM keeps asking
+     * for 10 µm: the tip holds at the fence, without retracting. */
+    without_tissue_give_back();
     const double z = approach_until_ceiling();
     const double ceiling = g.ceil[0].amp;
-    for (int k = 0; k < 50; ++k) { /* the SFSM keeps asking; the unit stays where it is */
+    for (int k = 0; k < 50; ++k) {
         const ag_output_t out = step1(ceiling, z, 10.0);
         TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.move_um);
         TEST_ASSERT_EQUAL_INT(AG_BLOCKED, out.action);
     }
     TEST_ASSERT_EQUAL_UINT32(0u, g.retractions);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, z, g.fence_um);
 }
 
-static void test_the_electrode_follows_a_unit_that_moves_away(void)
+static void test_the_give_back_of_an_advance_retracts_before_it_comes(void)
 {
+    /* After a descent part of every advance is still to come back towards
+     * the tip: a unit at its ceiling would pass it by climb_frac once it has
+     * come, so the tip gives way now, and may not return. */
+    const double z = approach_until_ceiling();
+    const uint32_t before = g.creep_retractions;
+    TEST_ASSERT_TRUE(g.pending_um > 0.0);
+    const ag_output_t out = step1(g.ceil[0].amp, z, 0.0);
+    TEST_ASSERT_EQUAL_INT(AG_RETRACT, out.action);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, -cfg.retract_um, out.move_um);
+    TEST_ASSERT_EQUAL_UINT32(before + 1u, g.creep_retractions);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, z - cfg.retract_um, out.fence_um);
+}
+
+static void test_a_neuron_on_the_path_in_relaxing_tissue_is_never_reached(void)
+{
+    /* Each advance drags the tissue 30 % of the way along and 24 % of it
+     * comes back towards the tip with a time constant of 120 s: the neuron
+     * keeps approaching after the tip stopped. */
+    double z = 0.0;
+    double soma = 200.0;
+    double give_back = 0.0;
+    double closest = HUGE_VAL;
+    for (int k = 0; k < 150; ++k) {
+        const double back = give_back * (1.0 - exp(-10.0 / 120.0));
+        soma -= back;
+        give_back -= back;
+        closest = fmin(closest, soma - z);
+        const ag_output_t out = step1(law(80.0, 0.0, soma - z), z, 20.0);
+        z += out.move_um;
+        soma += (out.move_um > 0.0) ? 0.30 * out.move_um : 0.0;
+        give_back += (out.move_um > 0.0) ? 0.24 * out.move_um : 0.0;
+    }
+    TEST_ASSERT_TRUE_MESSAGE(closest > 12.0, "the tip came within the damage radius");
+}
+
+static void test_the_fence_follows_a_unit_that_moves_away(void)
+{
+    without_tissue_give_back();
     const double z = approach_until_ceiling();
     const double ceiling = g.ceil[0].amp;
-    const ag_output_t out = step1(ceiling * 0.8, z, 10.0); /* the unit drifted away: some room again */
+    for (int k = 0; k < 8; ++k) { /* at the fence: its level is taken */
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, step1(ceiling, z, 10.0).move_um);
+    }
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, ceiling, g.fence_amp);
+    const double fence = g.fence_um;
+    ag_output_t out = {0};
+    for (int k = 0; k < 8 && !(out.move_um > 0.0); ++k) { /* the unit drifted away */
+        out = step1(0.8 * ceiling, z, 10.0);
+    }
+    /* The fence moves once the six-interval level fell by fence_drop_frac,
+     * by the least distance that fall needs: less than the whole fall. */
+    const double receded = g.fence_um - fence;
+    TEST_ASSERT_EQUAL_UINT32(1u, g.fence_moves);
+    TEST_ASSERT_TRUE(receded >= log(1.0 / (1.0 - cfg.fence_drop_frac)) / cfg.growth_max - 1e-9);
+    TEST_ASSERT_TRUE(receded <= log(1.0 / 0.8) / cfg.growth_max + 1e-9);
     TEST_ASSERT_TRUE(out.move_um > 0.0);
-    TEST_ASSERT_TRUE(out.move_um <= 10.0);
-    TEST_ASSERT_TRUE(out.move_um <= log(1.0 / 0.8) / cfg.growth_stop + 1e-9);
+    TEST_ASSERT_TRUE(out.move_um <= receded + 1e-9);
 }
 
-static void test_an_artefact_burst_does_not_freeze_the_search(void)
+static void test_the_fence_holds_when_a_ceiling_lapses(void)
 {
-    /* Two intervals of huge artefacts on a track unit set a ceiling; when the
-     * artefacts end the unit is gone, its ceiling lapses, the advance goes on. */
+    /* A sparse neuron on the path, seen as track 7, sets a ceiling, then
+     * goes unseen for longer than a ceiling lasts; a quieter unit keeps the
+     * robust amplitude above amp_floor: something is near, the fence stays. */
+    without_tissue_give_back();
     double z = 0.0;
-    for (int k = 0; k < 3; ++k) {
-        const ag_unit_t u[2] = {{AG_UNIT_RAW, 9.0}, {3u, 20.0 * pow(3.0, k)}};
-        const ag_input_t in = {u, 2u, z, 20.0};
+    for (int k = 0; k < 40 && g.n_ceil == 0u; ++k) {
+        const ag_unit_t u[2] = {{AG_UNIT_RAW, 13.0}, {7u, law(80.0, 0.0, 200.0 - z)}};
+        const ag_input_t in = {u, 2u, z, next_time(), 20.0};
         ag_output_t out;
         TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
         z += out.move_um;
     }
-    for (int k = 0; k < (int)AG_HISTORY + 2; ++k) {
+    TEST_ASSERT_EQUAL_UINT8(1u, g.n_ceil);
+    for (int k = 0; k < (int)AG_HISTORY + 10; ++k) {
+        const ag_output_t out = step1(13.0, z, 20.0);
+        TEST_ASSERT_TRUE(z + out.move_um <= g.fence_um + 1e-9);
+        z += out.move_um;
+    }
+    TEST_ASSERT_EQUAL_UINT8(0u, g.n_ceil);
+    TEST_ASSERT_FALSE(isinf(g.fence_um));
+    TEST_ASSERT_TRUE(200.0 - z > 12.0);
+}
+
+static void test_an_artefact_burst_does_not_freeze_the_search(void)
+{
+    /* Three intervals of huge artefacts on a track unit set a ceiling and a
+     * fence; when they end only noise is left (below amp_floor): the ceiling
+     * lapses, then the fence, and the advance goes on. */
+    double z = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        const ag_unit_t u[2] = {{AG_UNIT_RAW, 9.0}, {3u, 20.0 * pow(3.0, k)}};
+        const ag_input_t in = {u, 2u, z, next_time(), 20.0};
+        ag_output_t out;
+        TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
+        z += out.move_um;
+    }
+    TEST_ASSERT_FALSE(isinf(g.fence_um));
+    for (int k = 0; k < (int)cfg.fence_lapse + 2; ++k) {
         z += step1(9.0, z, 20.0).move_um;
     }
     TEST_ASSERT_EQUAL_UINT8(0u, g.n_ceil);
+    TEST_ASSERT_TRUE(isinf(g.fence_um));
+    TEST_ASSERT_EQUAL_UINT32(1u, g.fence_lapses);
     const ag_output_t out = step1(9.0, z, 20.0);
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 20.0, out.move_um);
 }
@@ -205,6 +306,7 @@ static void test_amp_stop_is_a_ceiling_for_every_unit(void)
     ag_output_t out = step1(cfg.amp_stop, 0.0, 5.0);
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.move_um);
     TEST_ASSERT_EQUAL_INT(AG_BLOCKED, out.action);
+    setUp();
     out = step1(cfg.amp_stop * 0.9, 0.0, 30.0);
     TEST_ASSERT_TRUE(out.move_um > 0.0 && out.move_um <= log(1.0 / 0.9) / cfg.growth_stop + 1e-9);
 }
@@ -214,22 +316,38 @@ static void test_invalid_input_holds_and_is_counted(void)
     const ag_unit_t bad[2] = {{AG_UNIT_RAW, NAN}, {1u, -1.0}};
     ag_output_t out;
     for (size_t i = 0u; i < 2u; ++i) {
-        const ag_input_t in = {&bad[i], 1u, 0.0, 20.0};
+        const ag_input_t in = {&bad[i], 1u, 0.0, next_time(), 20.0};
         TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &in, &out));
         TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.move_um);
         TEST_ASSERT_EQUAL_INT(AG_BAD_INPUT, out.action);
     }
     const ag_unit_t ok = {AG_UNIT_RAW, 10.0};
-    const ag_input_t nan_depth = {&ok, 1u, NAN, 20.0};
-    const ag_input_t too_many = {&ok, AG_UNITS_MAX + 1u, 0.0, 20.0};
-    const ag_input_t null_units = {NULL, 1u, 0.0, 20.0};
+    const ag_input_t nan_depth = {&ok, 1u, NAN, next_time(), 20.0};
+    const ag_input_t too_many = {&ok, AG_UNITS_MAX + 1u, 0.0, next_time(), 20.0};
+    const ag_input_t null_units = {NULL, 1u, 0.0, next_time(), 20.0};
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &nan_depth, &out));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &too_many, &out));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &null_units, &out));
-    TEST_ASSERT_EQUAL_UINT32(5u, g.bad_inputs);
+    const ag_input_t now = {&ok, 1u, 0.0, next_time(), 20.0};
+    const ag_input_t earlier = {&ok, 1u, 0.0, now.time_s - 1.0, 20.0};
+    const ag_input_t nan_time = {&ok, 1u, 0.0, NAN, 20.0};
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &now, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &earlier, &out));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &nan_time, &out));
+    TEST_ASSERT_EQUAL_INT(AG_BAD_INPUT, out.action);
+    TEST_ASSERT_EQUAL_UINT32(7u, g.bad_inputs);
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(NULL, &nan_depth, &out));
     ag_config_t c = cfg;
     c.amp_slow = c.amp_stop;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
+    c = cfg;
+    c.growth_stop = c.growth_max * 1.5;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
+    c = cfg;
+    c.relax_frac = 1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
+    c = cfg;
+    c.fence_lapse = 0u;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
     c = cfg;
     c.top_k = 0u;
@@ -263,8 +381,11 @@ int main(void)
     RUN_TEST(test_noise_at_a_standstill_never_retracts);
     RUN_TEST(test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way);
     RUN_TEST(test_a_slow_creep_towards_a_standing_tip_adds_up_to_a_retraction);
-    RUN_TEST(test_a_unit_saturating_at_a_ceiling_holds_the_electrode_without_retracting);
-    RUN_TEST(test_the_electrode_follows_a_unit_that_moves_away);
+    RUN_TEST(test_a_unit_saturating_at_its_ceiling_holds_the_electrode);
+    RUN_TEST(test_the_give_back_of_an_advance_retracts_before_it_comes);
+    RUN_TEST(test_a_neuron_on_the_path_in_relaxing_tissue_is_never_reached);
+    RUN_TEST(test_the_fence_follows_a_unit_that_moves_away);
+    RUN_TEST(test_the_fence_holds_when_a_ceiling_lapses);
     RUN_TEST(test_an_artefact_burst_does_not_freeze_the_search);
     RUN_TEST(test_amp_stop_is_a_ceiling_for_every_unit);
     RUN_TEST(test_invalid_input_holds_and_is_counted);

@@ -305,6 +305,7 @@ size_t bench_static_bytes(void)
 static const char *const REPLAY_NAMES[BENCH_RP_COUNT] = {"push", "end", "pca", "mhtc", "quality", "control"};
 
 static ag_state_t g_guard;
+static double g_guard_time_s; /* the replay's clock: one interval per control stage */
 static uint32_t g_rp_fs_hz;
 static double g_rp_gain_uv;
 static size_t g_rp_n;          /* samples of the current interval */
@@ -347,6 +348,7 @@ md_status_t bench_replay_setup(uint32_t fs_hz, double gain_uv)
     g_rp_fs_hz = fs_hz;
     g_rp_gain_uv = gain_uv;
     g_rp_tracked_um = NAN;
+    g_guard_time_s = 0.0;
     g_rp_ready = 1;
     return MD_OK;
 }
@@ -432,7 +434,8 @@ static md_status_t rp_control(void)
             unit[n++] = (ag_unit_t){g_ws.res.track[j].id, g_ws.track_snr[j]};
         }
     }
-    const ag_input_t gin = {unit, n, depth, out.move_um};
+    const ag_input_t gin = {unit, n, depth, g_guard_time_s, out.move_um};
+    g_guard_time_s += (double)g_rp_n / (double)g_rp_fs_hz;
     ag_output_t gout;
     (void)ag_apply(&g_guard, &gin, &gout); /* a refusal holds the electrode: no error of the cycle */
     return MD_OK;

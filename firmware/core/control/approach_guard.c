@@ -21,12 +21,22 @@ void ag_config_default(ag_config_t *cfg)
     cfg->climb_free_frac = 0.15;
     cfg->retract_um = 10.0;
     cfg->still_um = 3.0;
+    cfg->growth_max = 1.0 / 30.0;
+    cfg->fence_drop_frac = 0.15;
+    cfg->relax_frac = 0.24;
+    cfg->relax_tau_s = 120.0;
+    cfg->fence_lapse = 30u;
     cfg->top_k = 5u;
 }
 
 static bool positive(double v)
 {
     return isfinite(v) && v > 0.0;
+}
+
+static bool fraction(double v)
+{
+    return v > 0.0 && v < 1.0;
 }
 
 md_status_t ag_config_check(const ag_config_t *cfg)
@@ -36,6 +46,10 @@ md_status_t ag_config_check(const ag_config_t *cfg)
         !positive(cfg->climb_frac) || !(cfg->climb_free_frac >= cfg->climb_frac) || !positive(cfg->retract_um) ||
         !positive(cfg->still_um) || cfg->amp_floor > cfg->amp_slow || !(cfg->amp_slow < cfg->amp_stop) ||
         cfg->top_k < 1u || cfg->top_k > AG_TOP_K_MAX) {
+        return MD_E_ARG;
+    }
+    if (!positive(cfg->growth_max) || cfg->growth_stop > cfg->growth_max || !fraction(cfg->fence_drop_frac) ||
+        !fraction(cfg->relax_frac) || !positive(cfg->relax_tau_s) || cfg->fence_lapse < 1u) {
         return MD_E_ARG;
     }
     return MD_OK;
@@ -48,6 +62,7 @@ md_status_t ag_init(ag_state_t *s, const ag_config_t *cfg)
     }
     memset(s, 0, sizeof *s);
     s->cfg = *cfg;
+    s->fence_um = HUGE_VAL;
     return MD_OK;
 }
 
@@ -176,7 +191,9 @@ static void set_ceiling(ag_state_t *s, uint32_t id, double amp, double growth)
     }
 }
 
-/* Rule 1: units steep on this advance and the one before get a ceiling. */
+/* Rule 1: units steep on this advance and the one before get a ceiling; a
+ * loud one (amp_slow) on the first: one more advance of its growth could
+ * take it inside the damage radius. */
 static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out)
 {
     ag_snapshot_t steep;
@@ -192,7 +209,7 @@ static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out
             out->growth_unit = u->id;
         }
         if (g >= s->cfg.growth_stop) {
-            if (unit_amp(&s->steep, u->id) > 0.0) {
+            if (u->amp >= s->cfg.amp_slow || unit_amp(&s->steep, u->id) > 0.0) {
                 set_ceiling(s, u->id, u->amp, g);
             }
             steep.unit[steep.n++] = (ag_unit_t){u->id, g};
@@ -301,33 +318,123 @@ static double ceiling_room_um(const ag_state_t *s, const ag_snapshot_t *now)
     return room;
 }
 
-/* Rules 3 to 5: the step. */
+/* Rule 6: the tip may not pass z. A fence deeper than the one in force
+ * changes nothing. */
+static void put_fence(ag_state_t *s, double z)
+{
+    if (z < s->fence_um) {
+        s->fence_um = z;
+        s->fence_amp = 0.0;
+        s->fence_quiet = 0u;
+        s->fences_set++;
+    }
+}
+
+/* Rule 6 over time: quiet intervals lapse the fence; at the fence the level
+ * of the robust amplitude is taken, and a fall of it moves the fence deeper
+ * by the least distance the unit must have receded to fall that much. */
+static void tend_fence(ag_state_t *s, const ag_snapshot_t *now)
+{
+    if (isinf(s->fence_um)) {
+        return;
+    }
+    s->fence_quiet = (largest_amp(now) < s->cfg.amp_floor) ? (uint16_t)(s->fence_quiet + 1u) : 0u;
+    if (s->fence_quiet >= s->cfg.fence_lapse) {
+        s->fence_um = HUGE_VAL;
+        s->fence_amp = 0.0;
+        s->fence_lapses++;
+        return;
+    }
+    const ag_unit_t raw = {AG_UNIT_RAW, unit_amp(now, AG_UNIT_RAW)};
+    double level = 0.0;
+    if (fabs(now->depth_um - s->fence_um) >= s->cfg.still_um || !(raw.amp > 0.0) ||
+        !still_level(s, now, &raw, &level)) {
+        return;
+    }
+    if (!(s->fence_amp > 0.0)) {
+        s->fence_amp = level;
+    } else if (level <= (1.0 - s->cfg.fence_drop_frac) * s->fence_amp) {
+        s->fence_um += log(s->fence_amp / level) / s->cfg.growth_max;
+        s->fence_amp = 0.0;
+        s->fence_moves++;
+    }
+}
+
+/* Rule 7: the give-back still to come decays with time and grows with
+ * every advance (the travel since the interval before). */
+static void track_creep(ag_state_t *s, double moved, double time_s)
+{
+    if (s->hist_n > 0u) {
+        s->pending_um *= exp(-(time_s - s->time_s) / s->cfg.relax_tau_s);
+    }
+    s->pending_um += (moved > 0.0) ? s->cfg.relax_frac * moved : 0.0;
+    s->time_s = time_s;
+}
+
+/* Rule 7: a unit that will pass its ceiling (or amp_stop) by climb_frac once
+ * the pending give-back has come, predicted with its growth. */
+static bool creep_ahead(const ag_state_t *s, const ag_snapshot_t *now)
+{
+    const double rise = 1.0 + s->cfg.climb_frac;
+    for (uint8_t i = 0u; i < s->n_ceil; ++i) {
+        const double a = unit_amp(now, s->ceil[i].id);
+        const double g = fmax(s->ceil[i].growth, s->cfg.growth_stop);
+        if (a > 0.0 && a * exp(g * s->pending_um) >= rise * s->ceil[i].amp) {
+            return true;
+        }
+    }
+    return largest_amp(now) * exp(s->cfg.growth_stop * s->pending_um) >= rise * s->cfg.amp_stop;
+}
+
+/* Rules 3, 6 and 7: a retraction, when a unit came closer or will; the tip
+ * may not go back past where it retracted to. */
+static bool retract(ag_state_t *s, const ag_snapshot_t *now, bool still, double *step)
+{
+    const bool up = climbed(s, now, still); /* always: it keeps the standstill's reference */
+    const bool creeping = creep_ahead(s, now);
+    if (!up && !creeping) {
+        return false;
+    }
+    s->still_ref.n = 0u;
+    s->retractions++;
+    s->creep_retractions += (!up && creeping) ? 1u : 0u;
+    *step = fmin(*step, -s->cfg.retract_um);
+    put_fence(s, now->depth_um + *step);
+    return true;
+}
+
+/* Rules 3 to 7: the step. */
 static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double requested, bool still, ag_action_t *action)
 {
     const ag_config_t *c = &s->cfg;
     double step = requested;
     *action = AG_PASS;
-    if (climbed(s, now, still)) {
-        s->still_ref.n = 0u;
-        s->retractions++;
+    if (retract(s, now, still, &step)) {
         *action = AG_RETRACT;
-        return fmin(step, -c->retract_um);
+        return step;
     }
     if (step > c->move_near_um && largest_amp(now) >= c->amp_slow) {
         step = c->move_near_um;
         *action = AG_SLOWED;
     }
-    const double room = ceiling_room_um(s, now);
-    if (step > 0.0 && step > room) {
+    const double room = fmax(ceiling_room_um(s, now) - s->pending_um, 0.0);
+    if (step > room) {
         step = room;
+        *action = AG_BLOCKED;
+        put_fence(s, now->depth_um + room);
+    }
+    const double to_fence = fmax(s->fence_um - now->depth_um, 0.0);
+    if (step > to_fence) {
+        step = to_fence;
         *action = AG_BLOCKED;
     }
     return step;
 }
 
-static bool input_valid(const ag_input_t *in)
+static bool input_valid(const ag_state_t *s, const ag_input_t *in)
 {
-    if (!isfinite(in->depth_um) || !isfinite(in->move_um) || in->n_units > AG_UNITS_MAX ||
+    if (!isfinite(in->depth_um) || !isfinite(in->move_um) || !isfinite(in->time_s) ||
+        (s->hist_n > 0u && in->time_s < s->time_s) || in->n_units > AG_UNITS_MAX ||
         (in->unit == NULL && in->n_units > 0u)) {
         return false;
     }
@@ -359,7 +466,9 @@ md_status_t ag_apply(ag_state_t *s, const ag_input_t *in, ag_output_t *out)
     }
     memset(out, 0, sizeof *out);
     s->cycles++;
-    if (!input_valid(in)) {
+    out->fence_um = s->fence_um;
+    out->pending_um = s->pending_um;
+    if (!input_valid(s, in)) {
         s->bad_inputs++;
         out->action = AG_BAD_INPUT;
         out->n_ceilings = s->n_ceil;
@@ -369,14 +478,18 @@ md_status_t ag_apply(ag_state_t *s, const ag_input_t *in, ag_output_t *out)
     snapshot(in, &now);
     const double moved = (s->hist_n > 0u) ? now.depth_um - history_back(s, 0u)->depth_um : 0.0;
     const bool still = s->hist_n > 0u && fabs(moved) < s->cfg.still_um;
+    track_creep(s, moved, in->time_s);
     age_ceilings(s, &now);
     if (moved >= s->cfg.still_um) {
         mark_steep(s, &now, out); /* judged on arrival after an advance only */
     }
+    tend_fence(s, &now);
     out->move_um = limit_step(s, &now, in->move_um, still, &out->action);
     push_history(s, &now);
     s->last_growth = out->growth;
     s->limited += (out->action != AG_PASS) ? 1u : 0u;
     out->n_ceilings = s->n_ceil;
+    out->fence_um = s->fence_um;
+    out->pending_um = s->pending_um;
     return MD_OK;
 }

@@ -28,8 +28,9 @@
 ///  1. on arrival after an advance, per unit, growth g = ln(a / a_j) /
 ///     (z - z_j) against the newest earlier interval j recorded at least
 ///     baseline_min_um shallower that saw the unit; a unit (a >= amp_floor)
-///     whose growth reached growth_stop on two advances in a row is steep
-///     like a neuron on the path: its present amplitude becomes its ceiling;
+///     whose growth reached growth_stop on two advances in a row — or on one,
+///     once it is at amp_slow — is steep like a neuron on the path: its
+///     present amplitude becomes its ceiling;
 ///  2. amp_stop is a ceiling for every unit, whatever its growth;
 ///  3. a unit's level (mean of its last AG_STILL_INTERVALS amplitudes, all
 ///     at this depth; >= amp_slow) that climbed while the electrode stood
@@ -43,8 +44,27 @@
 ///     unit was not seen for AG_HISTORY intervals lapses (it left, or an
 ///     artefact burst ended), so a transient never freezes the search;
 ///  5. advances are at most move_near_um once any unit reaches amp_slow;
-///     retractions are never shortened.
-/// Invalid input (non-finite) holds the electrode and is counted.
+///     retractions are never shortened;
+///  6. a depth *fence*: where the guard retracted (the depth it retracted
+///     to) or a ceiling cut an advance (the depth the advance was cut to),
+///     the tip may not go deeper, even when the unit's ceiling later lapses
+///     (a sparse unit unseen for a while, a track that changed its id). On
+///     arrival at the fence the guard takes the level of the robust
+///     amplitude there; once that level has fallen by fence_drop_frac the
+///     unit moved away by at least ln(level then / level now) / growth_max
+///     (no unit's ln amplitude grows faster than growth_max per µm of
+///     approach), and the fence moves deeper by that much. A fence lapses
+///     after fence_lapse intervals in a row in which no unit reached
+///     amp_floor (nothing near: the search may go on);
+///  7. tissue *creep*: an advance drags the tissue along, and a fraction
+///     relax_frac of it springs back towards the tip over the following
+///     minutes (time constant relax_tau_s), carrying the neurons below with
+///     it. The part still to come (pending) shortens every ceiling's room,
+///     and when a ceiling unit (or the loudest unit against amp_stop) would
+///     rise to (1 + climb_frac) times its ceiling once it has come, the
+///     guard retracts now rather than wait for rule 3 to see the climb.
+/// Invalid input (non-finite, or time running backwards) holds the electrode
+/// and is counted.
 ///
 /// Memory: ag_state_t, fixed size, caller-owned. No I/O, no heap.
 #ifndef APPROACH_GUARD_H
@@ -99,6 +119,11 @@ typedef struct {
     double climb_free_frac;  ///< rise over its lowest level at a standstill that retracts a unit without a ceiling
     double retract_um;       ///< retraction step
     double still_um;         ///< moves shorter than this count as standing still
+    double growth_max;       ///< 1/µm: steepest ln-amplitude growth per µm of approach (1 / d0 of the law)
+    double fence_drop_frac;  ///< fall of the level at the fence that moves the fence deeper (rule 6)
+    double relax_frac;       ///< share of an advance the tissue gives back towards the tip (rule 7)
+    double relax_tau_s;      ///< time constant of that give-back
+    uint16_t fence_lapse;    ///< quiet intervals (no unit at amp_floor) after which a fence lapses
     uint8_t top_k;           ///< robust amplitude = k-th largest window amplitude (1..AG_TOP_K_MAX)
 } ag_config_t;
 
@@ -120,13 +145,20 @@ typedef struct {
     ag_snapshot_t steep;      ///< units steep on the latest advance (rule 1 needs two in a row)
     ag_snapshot_t still_ref;  ///< per unit, its lowest level at the current standstill (rule 3)
     double last_growth;       ///< largest unit growth of the latest interval (0 if none measured)
+    double fence_um;          ///< rule 6: deepest depth allowed (HUGE_VAL: no fence)
+    double fence_amp;         ///< level of the robust amplitude at the fence (0: not yet taken)
+    uint16_t fence_quiet;     ///< intervals in a row with no unit at amp_floor
+    double pending_um;        ///< rule 7: tissue give-back still to come
+    double time_s;            ///< the latest interval's time
     uint32_t cycles, ceilings_set, retractions, lapses, limited, bad_inputs;
+    uint32_t fences_set, fence_moves, fence_lapses, creep_retractions;
 } ag_state_t;
 
 typedef struct {
     const ag_unit_t *unit;  ///< the interval's units (ids distinct; amp >= 0, 0: not seen)
     size_t n_units;         ///< 0..AG_UNITS_MAX
     double depth_um;        ///< depth at which the interval was recorded
+    double time_s;          ///< when it was recorded (s; finite, never less than the interval before)
     double move_um;         ///< the SFSM's step (signed, + advances)
 } ag_input_t;
 
@@ -136,14 +168,17 @@ typedef struct {
     double growth;         ///< largest unit growth of this interval (0 if none measured)
     uint32_t growth_unit;  ///< its unit id
     uint8_t n_ceilings;    ///< ceilings in force after this interval
+    double fence_um;       ///< the fence after this interval (HUGE_VAL: none)
+    double pending_um;     ///< tissue give-back still expected (rule 7)
 } ag_output_t;
 
 /// Defaults (docs/sfsm.md, "Approach guard").
 void ag_config_default(ag_config_t *cfg);
 
 /// MD_OK if every field is in range (positive limits, amp_floor <= amp_slow
-/// < amp_stop, climb_frac <= climb_free_frac, 1 <= top_k <= AG_TOP_K_MAX),
-/// else MD_E_ARG.
+/// < amp_stop, climb_frac <= climb_free_frac, growth_stop <= growth_max,
+/// fence_drop_frac and relax_frac in (0, 1), fence_lapse >= 1,
+/// 1 <= top_k <= AG_TOP_K_MAX), else MD_E_ARG.
 md_status_t ag_config_check(const ag_config_t *cfg);
 
 /// Starts with no history and no ceiling. MD_E_ARG on NULL or a bad config.
@@ -159,8 +194,9 @@ md_status_t ag_robust_amplitude_i16(const int16_t *wave, size_t n, size_t stride
                                     double noise_rms_uv, uint8_t k, double *amp);
 
 /// One interval: updates the history and the ceilings, limits in->move_um.
-/// MD_E_ARG on NULL (nothing written) or invalid input — non-finite depth or
-/// step, a non-finite or negative amplitude, more than AG_UNITS_MAX units or
+/// MD_E_ARG on NULL (nothing written) or invalid input — non-finite depth,
+/// time or step, a time before the previous interval's, a non-finite or
+/// negative amplitude, more than AG_UNITS_MAX units or
 /// a NULL unit array with n_units > 0 (out: step 0, AG_BAD_INPUT, counted).
 /// O(AG_HISTORY · AG_UNITS_MAX²).
 md_status_t ag_apply(ag_state_t *s, const ag_input_t *in, ag_output_t *out);
