@@ -98,16 +98,30 @@ static void test_a_neuron_passed_at_a_safe_distance_does_not_stop_the_advance(vo
     TEST_ASSERT_EQUAL_UINT32(0u, g.ceilings_set);
 }
 
-static void test_advances_are_shortened_once_a_unit_is_loud(void)
+static void test_advances_are_shortened_while_a_loud_unit_may_be_ahead(void)
 {
-    ag_output_t out = step1(cfg.amp_slow - 1.0, 0.0, 30.0);
+    ag_output_t out = step1(cfg.amp_slow - 5.0, 0.0, 30.0);
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 30.0, out.move_um);
     TEST_ASSERT_EQUAL_INT(AG_PASS, out.action);
-    out = step1(cfg.amp_slow + 1.0, 30.0, 30.0);
+    out = step1(cfg.amp_slow + 1.0, 30.0, 30.0); /* grew by ln(16 / 10) / 30 µm: ahead */
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, cfg.move_near_um, out.move_um);
     TEST_ASSERT_EQUAL_INT(AG_SLOWED, out.action);
     out = step1(cfg.amp_slow + 1.0, 40.0, -30.0); /* retractions are never shortened */
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, -30.0, out.move_um);
+    setUp();
+    out = step1(cfg.amp_slow + 1.0, 0.0, 30.0); /* first interval: its growth is not known */
+    TEST_ASSERT_EQUAL_INT(AG_SLOWED, out.action);
+}
+
+static void test_a_loud_unit_beside_the_tip_does_not_slow_the_search(void)
+{
+    /* Passing a neuron 25 µm off the track at its depth: loud, but its
+     * amplitude hardly changes over an advance. */
+    step1(law(60.0, 25.0, 10.0), 0.0, cfg.move_near_um);
+    const ag_output_t out = step1(law(60.0, 25.0, -10.0), 20.0, 20.0);
+    TEST_ASSERT_TRUE(law(60.0, 25.0, -10.0) >= cfg.amp_slow);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 20.0, out.move_um);
+    TEST_ASSERT_EQUAL_INT(AG_PASS, out.action);
 }
 
 static void test_noise_at_a_standstill_never_retracts(void)
@@ -377,7 +391,8 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_a_neuron_on_the_path_is_never_reached);
     RUN_TEST(test_a_neuron_passed_at_a_safe_distance_does_not_stop_the_advance);
-    RUN_TEST(test_advances_are_shortened_once_a_unit_is_loud);
+    RUN_TEST(test_advances_are_shortened_while_a_loud_unit_may_be_ahead);
+    RUN_TEST(test_a_loud_unit_beside_the_tip_does_not_slow_the_search);
     RUN_TEST(test_noise_at_a_standstill_never_retracts);
     RUN_TEST(test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way);
     RUN_TEST(test_a_slow_creep_towards_a_standing_tip_adds_up_to_a_retraction);

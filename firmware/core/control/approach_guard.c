@@ -12,6 +12,7 @@ void ag_config_default(ag_config_t *cfg)
         return;
     }
     cfg->growth_stop = 0.022;
+    cfg->growth_slow = 0.011;
     cfg->baseline_min_um = 15.0;
     cfg->amp_floor = 12.0;
     cfg->amp_slow = 15.0;
@@ -48,8 +49,9 @@ md_status_t ag_config_check(const ag_config_t *cfg)
         cfg->top_k < 1u || cfg->top_k > AG_TOP_K_MAX) {
         return MD_E_ARG;
     }
-    if (!positive(cfg->growth_max) || cfg->growth_stop > cfg->growth_max || !fraction(cfg->fence_drop_frac) ||
-        !fraction(cfg->relax_frac) || !positive(cfg->relax_tau_s) || cfg->fence_lapse < 1u) {
+    if (!positive(cfg->growth_max) || cfg->growth_stop > cfg->growth_max || !positive(cfg->growth_slow) ||
+        cfg->growth_slow > cfg->growth_stop || !fraction(cfg->fence_drop_frac) || !fraction(cfg->relax_frac) ||
+        !positive(cfg->relax_tau_s) || cfg->fence_lapse < 1u) {
         return MD_E_ARG;
     }
     return MD_OK;
@@ -191,16 +193,29 @@ static void set_ceiling(ag_state_t *s, uint32_t id, double amp, double growth)
     }
 }
 
+/* A unit's growth on the latest advance; false if it was not measured. */
+static bool advance_growth(const ag_state_t *s, uint32_t id, double *g)
+{
+    for (uint8_t u = 0u; u < s->grown.n; ++u) {
+        if (s->grown.unit[u].id == id) {
+            *g = s->grown.unit[u].amp; /* the snapshot holds growth, not amplitude */
+            return true;
+        }
+    }
+    return false;
+}
+
 /* Rule 1: units steep on this advance and the one before get a ceiling; a
  * loud one (amp_slow) on the first: one more advance of its growth could
- * take it inside the damage radius. */
+ * take it inside the damage radius. Every unit's growth is kept for rule 5. */
 static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out)
 {
-    ag_snapshot_t steep;
-    memset(&steep, 0, sizeof steep);
+    ag_snapshot_t grown;
+    memset(&grown, 0, sizeof grown);
     for (uint8_t k = 0u; k < now->n; ++k) {
         const ag_unit_t *u = &now->unit[k];
         double g = 0.0;
+        double g_before = 0.0;
         if (u->amp < s->cfg.amp_floor || !unit_growth(s, now, u, &g)) {
             continue;
         }
@@ -208,14 +223,13 @@ static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out
             out->growth = g;
             out->growth_unit = u->id;
         }
-        if (g >= s->cfg.growth_stop) {
-            if (u->amp >= s->cfg.amp_slow || unit_amp(&s->steep, u->id) > 0.0) {
-                set_ceiling(s, u->id, u->amp, g);
-            }
-            steep.unit[steep.n++] = (ag_unit_t){u->id, g};
+        const bool steep_before = advance_growth(s, u->id, &g_before) && g_before >= s->cfg.growth_stop;
+        if (g >= s->cfg.growth_stop && (u->amp >= s->cfg.amp_slow || steep_before)) {
+            set_ceiling(s, u->id, u->amp, g);
         }
+        grown.unit[grown.n++] = (ag_unit_t){u->id, g};
     }
-    s->steep = steep;
+    s->grown = grown;
 }
 
 /* Rule 4: ceilings of units not seen for AG_HISTORY intervals lapse. */
@@ -403,6 +417,20 @@ static bool retract(ag_state_t *s, const ag_snapshot_t *now, bool still, double 
     return true;
 }
 
+/* Rule 5: a unit at amp_slow whose growth on the latest advance was not
+ * measured or reached growth_slow: the tip may be closing in on it. */
+static bool loud_and_closing(const ag_state_t *s, const ag_snapshot_t *now)
+{
+    for (uint8_t k = 0u; k < now->n; ++k) {
+        double g = 0.0;
+        if (now->unit[k].amp >= s->cfg.amp_slow &&
+            (!advance_growth(s, now->unit[k].id, &g) || g >= s->cfg.growth_slow)) {
+            return true;
+        }
+    }
+    return false;
+}
+
 /* Rules 3 to 7: the step. */
 static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double requested, bool still, ag_action_t *action)
 {
@@ -413,7 +441,7 @@ static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double request
         *action = AG_RETRACT;
         return step;
     }
-    if (step > c->move_near_um && largest_amp(now) >= c->amp_slow) {
+    if (step > c->move_near_um && loud_and_closing(s, now)) {
         step = c->move_near_um;
         *action = AG_SLOWED;
     }

@@ -43,8 +43,12 @@
 ///     and the electrode follows a unit that moves away. A ceiling whose
 ///     unit was not seen for AG_HISTORY intervals lapses (it left, or an
 ///     artefact burst ended), so a transient never freezes the search;
-///  5. advances are at most move_near_um once any unit reaches amp_slow;
-///     retractions are never shortened;
+///  5. advances are at most move_near_um while a unit at amp_slow may be
+///     ahead: its growth on the latest advance reached growth_slow, or was
+///     not measured (the first interval, a new track). A loud unit the tip
+///     stands beside grows little and does not slow the search; one ahead
+///     on the path grows about 2 / x at axial distance x, so growth_slow
+///     catches it from a few hundred µm. Retractions are never shortened;
 ///  6. a depth *fence*: where the guard retracted (the depth it retracted
 ///     to) or a ceiling cut an advance (the depth the advance was cut to),
 ///     the tip may not go deeper, even when the unit's ceiling later lapses
@@ -110,6 +114,7 @@ typedef enum {
 
 typedef struct {
     double growth_stop;      ///< 1/µm: ln-amplitude growth per µm of advance that marks a unit steep
+    double growth_slow;      ///< 1/µm: growth below which a loud unit does not slow the advance (rule 5)
     double baseline_min_um;  ///< shortest travel over which growth is measured
     double amp_floor;        ///< below this robust amplitude (noise RMS units) growth is not judged
     double amp_slow;         ///< from this amplitude advances are at most move_near_um
@@ -142,7 +147,7 @@ typedef struct {
     uint8_t hist_head;  ///< slot of the next entry
     ag_ceiling_t ceil[AG_UNITS_MAX];
     uint8_t n_ceil;
-    ag_snapshot_t steep;      ///< units steep on the latest advance (rule 1 needs two in a row)
+    ag_snapshot_t grown;      ///< each unit's growth (in .amp) on the latest advance: rules 1 and 5
     ag_snapshot_t still_ref;  ///< per unit, its lowest level at the current standstill (rule 3)
     double last_growth;       ///< largest unit growth of the latest interval (0 if none measured)
     double fence_um;          ///< rule 6: deepest depth allowed (HUGE_VAL: no fence)
@@ -176,7 +181,8 @@ typedef struct {
 void ag_config_default(ag_config_t *cfg);
 
 /// MD_OK if every field is in range (positive limits, amp_floor <= amp_slow
-/// < amp_stop, climb_frac <= climb_free_frac, growth_stop <= growth_max,
+/// < amp_stop, climb_frac <= climb_free_frac, growth_slow <= growth_stop
+/// <= growth_max,
 /// fence_drop_frac and relax_frac in (0, 1), fence_lapse >= 1,
 /// 1 <= top_k <= AG_TOP_K_MAX), else MD_E_ARG.
 md_status_t ag_config_check(const ag_config_t *cfg);
