@@ -68,6 +68,14 @@ static void guard_cfg_from(const md_params_t *p, ag_config_t *cfg)
     cfg->retract_um = md_params_get(p, MD_P_GUARD_RETRACT_UM);
     cfg->climb_free_frac = md_params_get(p, MD_P_GUARD_CLIMB_FRAC);
     cfg->climb_frac = fmin(cfg->climb_frac, cfg->climb_free_frac); /* a unit at its ceiling is known to be close */
+    cfg->growth_slow = md_params_get(p, MD_P_GUARD_GROWTH_SLOW);
+    cfg->growth_max = md_params_get(p, MD_P_GUARD_GROWTH_MAX);
+    cfg->fence_drop_frac = md_params_get(p, MD_P_GUARD_FENCE_DROP);
+    cfg->fence_lapse = (uint16_t)md_params_get_u32(p, MD_P_GUARD_FENCE_LAPSE);
+    cfg->relax_frac = md_params_get(p, MD_P_GUARD_RELAX_FRAC);
+    cfg->relax_tau_s = md_params_get(p, MD_P_GUARD_RELAX_TAU_S);
+    cfg->probe_um = md_params_get(p, MD_P_GUARD_PROBE_UM);
+    cfg->creep_horizon_s = md_params_get(p, MD_P_GUARD_CREEP_HORIZON_S);
 }
 
 static void mhtc_cfg_from(const md_params_t *p, mhtc_config_t *cfg)

@@ -98,6 +98,28 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                                "approach guard: retraction when the unit comes closer while the electrode stands"},
     [MD_P_GUARD_CLIMB_FRAC] = {0x2056u, "guard_climb_frac", "", 0.01, 2.0, 0.15, MD_PARAM_F_MOTION,
                                "approach guard: rise of a unit over its lowest level at a standstill that retracts"},
+    [MD_P_GUARD_GROWTH_SLOW] = {0x2057u, "guard_growth_slow", "1/um", 0.0001, 1.0, 0.011, MD_PARAM_F_MOTION,
+                                "approach guard: growth on the last advance from which a unit at guard_amp_slow "
+                                "shortens advances (<= guard_growth_stop)"},
+    [MD_P_GUARD_GROWTH_MAX] = {0x2058u, "guard_growth_max", "1/um", 0.001, 1.0, 1.0 / 30.0, MD_PARAM_F_MOTION,
+                               "approach guard: steepest ln-amplitude growth per um of approach of any unit (1 / d0; "
+                               ">= guard_growth_stop)"},
+    [MD_P_GUARD_FENCE_DROP] = {0x2059u, "guard_fence_drop", "", 0.01, 0.9, 0.15, MD_PARAM_F_MOTION,
+                               "approach guard: fall of the level at the depth fence that moves the fence deeper"},
+    [MD_P_GUARD_FENCE_LAPSE] = {0x205Au, "guard_fence_lapse", "", 1.0, 1000.0, 30.0,
+                                MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
+                                "approach guard: intervals with no unit at the amplitude floor after which a depth "
+                                "fence lapses"},
+    [MD_P_GUARD_RELAX_FRAC] = {0x205Bu, "guard_relax_frac", "", 0.001, 0.9, 0.24, MD_PARAM_F_MOTION,
+                               "approach guard: share of an advance the tissue gives back towards the tip"},
+    [MD_P_GUARD_RELAX_TAU_S] = {0x205Cu, "guard_relax_tau_s", "s", 1.0, 3600.0, 120.0, MD_PARAM_F_MOTION,
+                                "approach guard: time constant of the tissue's give-back"},
+    [MD_P_GUARD_PROBE_UM] = {0x205Du, "guard_probe_um", "um", 0.5, 50.0, 5.0, MD_PARAM_F_MOTION,
+                             "approach guard: advance past the depth fence that measures whether the unit there is "
+                             "ahead"},
+    [MD_P_GUARD_CREEP_HORIZON_S] = {0x205Eu, "guard_creep_horizon_s", "s", 1.0, 3600.0, 30.0, MD_PARAM_F_MOTION,
+                                    "approach guard: the tissue's give-back due within this time limits advances and "
+                                    "retracts"},
     [MD_P_NODE_STATE] = {0x3000u, "node_state", "", 0.0, 255.0, 0.0, RO_LIVE, "NMT state (HEARTBEAT NodeState)"},
     [MD_P_ESTOP_LATCHED] = {0x3001u, "estop_latched", "", 0.0, 1.0, 0.0, RO_LIVE, "1 while the e-stop is latched"},
     [MD_P_UPTIME_S] = {0x3002u, "uptime_s", "s", 0.0, U32_MAX_D, 0.0, RO_LIVE, "seconds since power-on"},

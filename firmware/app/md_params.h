@@ -40,39 +40,47 @@ typedef enum {
     MD_P_MONITOR_FE,            ///< supervise the front-end's heartbeat
     MD_P_AUTO_START,            ///< go operational by itself after boot (CANopen 0x1F80)
     /* closed loop placeholders (0x2xxx), used by the electrode cycle */
-    MD_P_INTERVAL_S,           ///< recording interval length
-    MD_P_MOVE_MAX_UM,          ///< Delta_max, cap of one step (thesis §2.2.3, after eq. 2.1)
-    MD_P_MOVE_SEARCH_UM,       ///< Delta_search
-    MD_P_MOVE_SAMPLE_UM,       ///< Delta_sample
-    MD_P_MOVE_RESAMPLE_UM,     ///< Delta_resample (retracting)
-    MD_P_DEPTH_MIN_UM,         ///< depth window, shallow end
-    MD_P_DEPTH_MAX_UM,         ///< depth window, deep end
-    MD_P_SETTLE_MS,            ///< wait after a move before the next recording
-    MD_P_MIN_RATE_HZ,          ///< firing rate that counts as "spikes seen" (SFSM)
-    MD_P_SERVO_TOL_UM,         ///< servo: converged within this distance of the target
-    MD_P_SERVO_MAX_ITER,       ///< servo: step commands per move at most
-    MD_P_SERVO_AVG_N,          ///< servo: Hall readings averaged per measurement
-    MD_P_SERVO_STEP_NM,        ///< servo: initial estimate of one piezo step
-    MD_P_SERVO_RATE_HZ,        ///< servo: ACT_CMD step rate
-    MD_P_SFSM_GAMMA1,          ///< SFSM γ1: IQM to follow the gradient
-    MD_P_SFSM_GAMMA2,          ///< SFSM γ2: IQM to declare isolation at the peak
-    MD_P_SFSM_GAMMA3,          ///< SFSM γ3: IQM to declare isolation at once
-    MD_P_SFSM_WAIT_R,          ///< SFSM R of WAIT transitions
-    MD_P_SFSM_LOST_CYCLES,     ///< SFSM cycles without a dominant track before Spike Search
-    MD_P_SFSM_SNR_DROP,        ///< SFSM fraction of the isolation SNR that ends Neuron Isolated
-    MD_P_SC_TOL_UM,            ///< SNR-curve optimiser ε (eq. 2.1 converged)
-    MD_P_SFSM_SNR_MIN,         ///< SFSM noise floor: tracks below this SNR are never dominant
-    MD_P_SFSM_SEARCH_SPAN_UM,  ///< SFSM search leash around the last dominant track
-    MD_P_MHTC_Q_UV,            ///< MHTC process noise std per waveform sample and interval
-    MD_P_TRACKER,              ///< tracker: 0 MHTC, 1 MAP-NN, 2 ML-NN, 3 GNN (mhtc_tracker_t)
-    MD_P_MHTC_UNIMODAL_RATIO,  ///< clustering: a model with two clusters forming one mode is dropped
-    MD_P_GUARD_ENABLE,         ///< approach guard limits motion (0: computed and reported only)
-    MD_P_GUARD_GROWTH_STOP,    ///< approach guard: ln-amplitude growth per µm that blocks advancing
-    MD_P_GUARD_AMP_SLOW,       ///< approach guard: amplitude from which advances are shortened
-    MD_P_GUARD_AMP_STOP,       ///< approach guard: amplitude that blocks advancing
-    MD_P_GUARD_MOVE_NEAR_UM,   ///< approach guard: longest advance at or above guard_amp_slow
-    MD_P_GUARD_RETRACT_UM,     ///< approach guard: retraction when the unit climbs at a barrier
-    MD_P_GUARD_CLIMB_FRAC,     ///< approach guard: climb over the lowest standstill level that retracts
+    MD_P_INTERVAL_S,             ///< recording interval length
+    MD_P_MOVE_MAX_UM,            ///< Delta_max, cap of one step (thesis §2.2.3, after eq. 2.1)
+    MD_P_MOVE_SEARCH_UM,         ///< Delta_search
+    MD_P_MOVE_SAMPLE_UM,         ///< Delta_sample
+    MD_P_MOVE_RESAMPLE_UM,       ///< Delta_resample (retracting)
+    MD_P_DEPTH_MIN_UM,           ///< depth window, shallow end
+    MD_P_DEPTH_MAX_UM,           ///< depth window, deep end
+    MD_P_SETTLE_MS,              ///< wait after a move before the next recording
+    MD_P_MIN_RATE_HZ,            ///< firing rate that counts as "spikes seen" (SFSM)
+    MD_P_SERVO_TOL_UM,           ///< servo: converged within this distance of the target
+    MD_P_SERVO_MAX_ITER,         ///< servo: step commands per move at most
+    MD_P_SERVO_AVG_N,            ///< servo: Hall readings averaged per measurement
+    MD_P_SERVO_STEP_NM,          ///< servo: initial estimate of one piezo step
+    MD_P_SERVO_RATE_HZ,          ///< servo: ACT_CMD step rate
+    MD_P_SFSM_GAMMA1,            ///< SFSM γ1: IQM to follow the gradient
+    MD_P_SFSM_GAMMA2,            ///< SFSM γ2: IQM to declare isolation at the peak
+    MD_P_SFSM_GAMMA3,            ///< SFSM γ3: IQM to declare isolation at once
+    MD_P_SFSM_WAIT_R,            ///< SFSM R of WAIT transitions
+    MD_P_SFSM_LOST_CYCLES,       ///< SFSM cycles without a dominant track before Spike Search
+    MD_P_SFSM_SNR_DROP,          ///< SFSM fraction of the isolation SNR that ends Neuron Isolated
+    MD_P_SC_TOL_UM,              ///< SNR-curve optimiser ε (eq. 2.1 converged)
+    MD_P_SFSM_SNR_MIN,           ///< SFSM noise floor: tracks below this SNR are never dominant
+    MD_P_SFSM_SEARCH_SPAN_UM,    ///< SFSM search leash around the last dominant track
+    MD_P_MHTC_Q_UV,              ///< MHTC process noise std per waveform sample and interval
+    MD_P_TRACKER,                ///< tracker: 0 MHTC, 1 MAP-NN, 2 ML-NN, 3 GNN (mhtc_tracker_t)
+    MD_P_MHTC_UNIMODAL_RATIO,    ///< clustering: a model with two clusters forming one mode is dropped
+    MD_P_GUARD_ENABLE,           ///< approach guard limits motion (0: computed and reported only)
+    MD_P_GUARD_GROWTH_STOP,      ///< approach guard: ln-amplitude growth per µm that blocks advancing
+    MD_P_GUARD_AMP_SLOW,         ///< approach guard: amplitude from which advances are shortened
+    MD_P_GUARD_AMP_STOP,         ///< approach guard: amplitude that blocks advancing
+    MD_P_GUARD_MOVE_NEAR_UM,     ///< approach guard: longest advance at or above guard_amp_slow
+    MD_P_GUARD_RETRACT_UM,       ///< approach guard: retraction when the unit climbs at a barrier
+    MD_P_GUARD_CLIMB_FRAC,       ///< approach guard: climb over the lowest standstill level that retracts
+    MD_P_GUARD_GROWTH_SLOW,      ///< approach guard: growth from which a loud unit shortens advances
+    MD_P_GUARD_GROWTH_MAX,       ///< approach guard: steepest growth of any unit (1 / d0)
+    MD_P_GUARD_FENCE_DROP,       ///< approach guard: fall of the level at the fence that moves it deeper
+    MD_P_GUARD_FENCE_LAPSE,      ///< approach guard: quiet intervals after which a fence lapses
+    MD_P_GUARD_RELAX_FRAC,       ///< approach guard: share of an advance the tissue gives back
+    MD_P_GUARD_RELAX_TAU_S,      ///< approach guard: time constant of that give-back
+    MD_P_GUARD_PROBE_UM,         ///< approach guard: a probe past the depth fence
+    MD_P_GUARD_CREEP_HORIZON_S,  ///< approach guard: give-back counted within this time
     /* diagnostics (0x3xxx), read-only */
     MD_P_NODE_STATE,
     MD_P_ESTOP_LATCHED,

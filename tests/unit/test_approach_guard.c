@@ -189,6 +189,13 @@ static void without_tissue_give_back(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, ag_init(&g, &cfg));
 }
 
+/* A fence at depth z, as a retraction there would leave it. */
+static void put_fence_for_test(double z)
+{
+    g.fence_um = z;
+    g.fence_amp = 0.0;
+}
+
 static void test_a_unit_saturating_at_its_ceiling_holds_the_electrode(void)
 {
     /* The tissue settled; the neuron stays where it is, the SFSM keeps asking
@@ -251,6 +258,7 @@ static void test_the_fence_follows_a_unit_that_moves_away(void)
         TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, step1(ceiling, z, 10.0).move_um);
     }
     TEST_ASSERT_DOUBLE_WITHIN(1e-6, ceiling, g.fence_amp);
+    g.probe_barred = true; /* as after a steep probe: only the fall moves the fence */
     const double fence = g.fence_um;
     ag_output_t out = {0};
     for (int k = 0; k < 8 && !(out.move_um > 0.0); ++k) { /* the unit drifted away */
@@ -289,6 +297,44 @@ static void test_the_fence_holds_when_a_ceiling_lapses(void)
     TEST_ASSERT_EQUAL_UINT8(0u, g.n_ceil);
     TEST_ASSERT_FALSE(isinf(g.fence_um));
     TEST_ASSERT_TRUE(200.0 - z > 12.0);
+}
+
+/* Stands at the fence while the SFSM asks for 10 µm, the unit at lateral
+ * distance r and depth 200 (amplitude law, no give-back) until `cycles`
+ * intervals passed; returns the depth reached. */
+static double stand_at_fence(double r_um, double z, int cycles)
+{
+    for (int k = 0; k < cycles; ++k) {
+        const ag_output_t out = step1(law(80.0, r_um, 200.0 - z), z, 10.0);
+        TEST_ASSERT_TRUE(z + out.move_um <= g.fence_um + 1e-9 || out.action == AG_RETRACT);
+        z += out.move_um;
+    }
+    return z;
+}
+
+static void test_a_probe_past_the_fence_finds_the_neuron_beside_the_track(void)
+{
+    /* A fence 40 µm above the depth of a neuron 30 µm off the track: it grows
+     * little over a probe, so the fence moves on probe by probe. */
+    without_tissue_give_back();
+    put_fence_for_test(160.0);
+    const double z = stand_at_fence(30.0, 160.0, 60);
+    TEST_ASSERT_TRUE(g.probes >= 3u);
+    TEST_ASSERT_EQUAL_UINT32(0u, g.probes_steep);
+    TEST_ASSERT_TRUE(z >= 160.0 + 3.0 * cfg.probe_um - 1e-9);
+}
+
+static void test_a_probe_towards_a_neuron_on_the_path_goes_back(void)
+{
+    /* The same fence 25 µm above a neuron on the path: the probe is steep,
+     * the tip goes back to the fence and probes no more. */
+    without_tissue_give_back();
+    put_fence_for_test(175.0);
+    const double z = stand_at_fence(0.0, 175.0, 60);
+    TEST_ASSERT_EQUAL_UINT32(1u, g.probes);
+    TEST_ASSERT_EQUAL_UINT32(1u, g.probes_steep);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 175.0, g.fence_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 175.0, z);
 }
 
 static void test_an_artefact_burst_does_not_freeze_the_search(void)
@@ -401,6 +447,8 @@ int main(void)
     RUN_TEST(test_a_neuron_on_the_path_in_relaxing_tissue_is_never_reached);
     RUN_TEST(test_the_fence_follows_a_unit_that_moves_away);
     RUN_TEST(test_the_fence_holds_when_a_ceiling_lapses);
+    RUN_TEST(test_a_probe_past_the_fence_finds_the_neuron_beside_the_track);
+    RUN_TEST(test_a_probe_towards_a_neuron_on_the_path_goes_back);
     RUN_TEST(test_an_artefact_burst_does_not_freeze_the_search);
     RUN_TEST(test_amp_stop_is_a_ceiling_for_every_unit);
     RUN_TEST(test_invalid_input_holds_and_is_counted);

@@ -26,7 +26,9 @@ void ag_config_default(ag_config_t *cfg)
     cfg->fence_drop_frac = 0.15;
     cfg->relax_frac = 0.24;
     cfg->relax_tau_s = 120.0;
+    cfg->creep_horizon_s = 30.0;
     cfg->fence_lapse = 30u;
+    cfg->probe_um = 5.0;
     cfg->top_k = 5u;
 }
 
@@ -51,7 +53,8 @@ md_status_t ag_config_check(const ag_config_t *cfg)
     }
     if (!positive(cfg->growth_max) || cfg->growth_stop > cfg->growth_max || !positive(cfg->growth_slow) ||
         cfg->growth_slow > cfg->growth_stop || !fraction(cfg->fence_drop_frac) || !fraction(cfg->relax_frac) ||
-        !positive(cfg->relax_tau_s) || cfg->fence_lapse < 1u) {
+        !positive(cfg->relax_tau_s) || !positive(cfg->creep_horizon_s) || cfg->fence_lapse < 1u ||
+        !positive(cfg->probe_um)) {
         return MD_E_ARG;
     }
     return MD_OK;
@@ -340,7 +343,27 @@ static void put_fence(ag_state_t *s, double z)
         s->fence_um = z;
         s->fence_amp = 0.0;
         s->fence_quiet = 0u;
+        s->probing = false;
+        s->probe_barred = false;
         s->fences_set++;
+    }
+}
+
+/* Rule 6, a probe judged on its level: growth from the level at the old
+ * fence to the level probe_um deeper. Steep: the fence goes back (the tip
+ * follows it, limit_step) and no probe is made from it until its level falls. */
+static void judge_probe(ag_state_t *s, double level)
+{
+    if (!s->probing) {
+        return;
+    }
+    s->probing = false;
+    const double g = log(level / s->probe_level) / (s->fence_um - s->probe_from_um);
+    if (g >= s->cfg.growth_stop) {
+        s->fence_um = s->probe_from_um;
+        s->fence_amp = s->probe_level;
+        s->probe_barred = true;
+        s->probes_steep++;
     }
 }
 
@@ -349,7 +372,7 @@ static void put_fence(ag_state_t *s, double z)
  * by the least distance the unit must have receded to fall that much. */
 static void tend_fence(ag_state_t *s, const ag_snapshot_t *now)
 {
-    if (isinf(s->fence_um)) {
+    if (isinf(s->fence_um) != 0) {
         return;
     }
     s->fence_quiet = (largest_amp(now) < s->cfg.amp_floor) ? (uint16_t)(s->fence_quiet + 1u) : 0u;
@@ -367,9 +390,13 @@ static void tend_fence(ag_state_t *s, const ag_snapshot_t *now)
     }
     if (!(s->fence_amp > 0.0)) {
         s->fence_amp = level;
-    } else if (level <= (1.0 - s->cfg.fence_drop_frac) * s->fence_amp) {
+        judge_probe(s, level);
+        return;
+    }
+    if (level <= (1.0 - s->cfg.fence_drop_frac) * s->fence_amp) {
         s->fence_um += log(s->fence_amp / level) / s->cfg.growth_max;
         s->fence_amp = 0.0;
+        s->probe_barred = false;
         s->fence_moves++;
     }
 }
@@ -385,19 +412,27 @@ static void track_creep(ag_state_t *s, double moved, double time_s)
     s->time_s = time_s;
 }
 
+/* Rule 7: the give-back that comes within creep_horizon_s. The guard looks
+ * again every interval, so what comes later is judged when it is nearer. */
+static double creep_soon_um(const ag_state_t *s)
+{
+    return s->pending_um * (1.0 - exp(-s->cfg.creep_horizon_s / s->cfg.relax_tau_s));
+}
+
 /* Rule 7: a unit that will pass its ceiling (or amp_stop) by climb_frac once
- * the pending give-back has come, predicted with its growth. */
+ * the give-back of the horizon has come, predicted with its growth. */
 static bool creep_ahead(const ag_state_t *s, const ag_snapshot_t *now)
 {
     const double rise = 1.0 + s->cfg.climb_frac;
+    const double soon = creep_soon_um(s);
     for (uint8_t i = 0u; i < s->n_ceil; ++i) {
         const double a = unit_amp(now, s->ceil[i].id);
         const double g = fmax(s->ceil[i].growth, s->cfg.growth_stop);
-        if (a > 0.0 && a * exp(g * s->pending_um) >= rise * s->ceil[i].amp) {
+        if (a > 0.0 && a * exp(g * soon) >= rise * s->ceil[i].amp) {
             return true;
         }
     }
-    return largest_amp(now) * exp(s->cfg.growth_stop * s->pending_um) >= rise * s->cfg.amp_stop;
+    return largest_amp(now) * exp(s->cfg.growth_stop * soon) >= rise * s->cfg.amp_stop;
 }
 
 /* Rules 3, 6 and 7: a retraction, when a unit came closer or will; the tip
@@ -431,6 +466,44 @@ static bool loud_and_closing(const ag_state_t *s, const ag_snapshot_t *now)
     return false;
 }
 
+/* Rule 6: a probe of probe_um past the fence, when the tip stands at it,
+ * its level is known, no probe is pending or barred, and the tissue has
+ * nearly settled (the give-back due soon would add to the growth). */
+static bool try_probe(ag_state_t *s, const ag_snapshot_t *now)
+{
+    if (isinf(s->fence_um) != 0 || fabs(now->depth_um - s->fence_um) >= s->cfg.still_um || !(s->fence_amp > 0.0) ||
+        s->probing || s->probe_barred || creep_soon_um(s) >= s->cfg.still_um) {
+        return false;
+    }
+    s->probe_from_um = s->fence_um;
+    s->probe_level = s->fence_amp;
+    s->fence_um += s->cfg.probe_um;
+    s->fence_amp = 0.0;
+    s->probing = true;
+    s->probes++;
+    return true;
+}
+
+/* Rule 6: the step the fence allows; back to it after a steep probe. */
+static double fence_step(ag_state_t *s, const ag_snapshot_t *now, double step, ag_action_t *action)
+{
+    double to_fence = s->fence_um - now->depth_um;
+    if (to_fence <= -s->cfg.still_um) {
+        *action = AG_RETRACT;
+        s->retractions++;
+        return fmin(step, to_fence);
+    }
+    to_fence = fmax(to_fence, 0.0);
+    if (step > to_fence && try_probe(s, now)) {
+        to_fence = fmax(s->fence_um - now->depth_um, 0.0);
+    }
+    if (step > to_fence) {
+        *action = AG_BLOCKED;
+        return to_fence;
+    }
+    return step;
+}
+
 /* Rules 3 to 7: the step. */
 static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double requested, bool still, ag_action_t *action)
 {
@@ -445,18 +518,13 @@ static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double request
         step = c->move_near_um;
         *action = AG_SLOWED;
     }
-    const double room = fmax(ceiling_room_um(s, now) - s->pending_um, 0.0);
+    const double room = fmax(ceiling_room_um(s, now) - creep_soon_um(s), 0.0);
     if (step > room) {
         step = room;
         *action = AG_BLOCKED;
         put_fence(s, now->depth_um + room);
     }
-    const double to_fence = fmax(s->fence_um - now->depth_um, 0.0);
-    if (step > to_fence) {
-        step = to_fence;
-        *action = AG_BLOCKED;
-    }
-    return step;
+    return fence_step(s, now, step, action);
 }
 
 static bool input_valid(const ag_state_t *s, const ag_input_t *in)

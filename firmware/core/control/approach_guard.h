@@ -57,16 +57,25 @@
 ///     amplitude there; once that level has fallen by fence_drop_frac the
 ///     unit moved away by at least ln(level then / level now) / growth_max
 ///     (no unit's ln amplitude grows faster than growth_max per µm of
-///     approach), and the fence moves deeper by that much. A fence lapses
+///     approach), and the fence moves deeper by that much. A unit that
+///     stays put (a neuron beside the track, which may have set a ceiling:
+///     growth alone cannot tell it from one on the path) is *probed*: once
+///     the tissue has settled and the level at the fence is known, the
+///     fence moves probe_um deeper; the level there, against the level
+///     before, gives the growth over the probe, and a steep one puts the
+///     fence, and the tip, back and bars probes until the level falls.
+///     A fence lapses
 ///     after fence_lapse intervals in a row in which no unit reached
 ///     amp_floor (nothing near: the search may go on);
 ///  7. tissue *creep*: an advance drags the tissue along, and a fraction
 ///     relax_frac of it springs back towards the tip over the following
 ///     minutes (time constant relax_tau_s), carrying the neurons below with
-///     it. The part still to come (pending) shortens every ceiling's room,
-///     and when a ceiling unit (or the loudest unit against amp_stop) would
-///     rise to (1 + climb_frac) times its ceiling once it has come, the
-///     guard retracts now rather than wait for rule 3 to see the climb.
+///     it. The part due within creep_horizon_s shortens every ceiling's
+///     room, and when a ceiling unit (or the loudest unit against amp_stop)
+///     would rise to (1 + climb_frac) times its ceiling once it has come,
+///     the guard retracts now rather than wait for rule 3 to see the climb.
+///     The horizon spans a few intervals, not the whole give-back: the guard
+///     looks again every interval, and what comes later is judged nearer.
 /// Invalid input (non-finite, or time running backwards) holds the electrode
 /// and is counted.
 ///
@@ -128,6 +137,8 @@ typedef struct {
     double fence_drop_frac;  ///< fall of the level at the fence that moves the fence deeper (rule 6)
     double relax_frac;       ///< share of an advance the tissue gives back towards the tip (rule 7)
     double relax_tau_s;      ///< time constant of that give-back
+    double creep_horizon_s;  ///< rule 7 counts the give-back due within this time
+    double probe_um;         ///< a probe past the fence (rule 6)
     uint16_t fence_lapse;    ///< quiet intervals (no unit at amp_floor) after which a fence lapses
     uint8_t top_k;           ///< robust amplitude = k-th largest window amplitude (1..AG_TOP_K_MAX)
 } ag_config_t;
@@ -153,10 +164,14 @@ typedef struct {
     double fence_um;          ///< rule 6: deepest depth allowed (HUGE_VAL: no fence)
     double fence_amp;         ///< level of the robust amplitude at the fence (0: not yet taken)
     uint16_t fence_quiet;     ///< intervals in a row with no unit at amp_floor
+    bool probing;             ///< the fence was moved probe_um by a probe not judged yet
+    bool probe_barred;        ///< a probe from this fence was steep: none until its level falls
+    double probe_from_um;     ///< the fence before the probe
+    double probe_level;       ///< the level there
     double pending_um;        ///< rule 7: tissue give-back still to come
     double time_s;            ///< the latest interval's time
     uint32_t cycles, ceilings_set, retractions, lapses, limited, bad_inputs;
-    uint32_t fences_set, fence_moves, fence_lapses, creep_retractions;
+    uint32_t fences_set, fence_moves, fence_lapses, creep_retractions, probes, probes_steep;
 } ag_state_t;
 
 typedef struct {
@@ -183,7 +198,8 @@ void ag_config_default(ag_config_t *cfg);
 /// MD_OK if every field is in range (positive limits, amp_floor <= amp_slow
 /// < amp_stop, climb_frac <= climb_free_frac, growth_slow <= growth_stop
 /// <= growth_max,
-/// fence_drop_frac and relax_frac in (0, 1), fence_lapse >= 1,
+/// fence_drop_frac and relax_frac in (0, 1), fence_lapse >= 1, probe_um,
+/// relax_tau_s and creep_horizon_s > 0,
 /// 1 <= top_k <= AG_TOP_K_MAX), else MD_E_ARG.
 md_status_t ag_config_check(const ag_config_t *cfg);
 
