@@ -4,11 +4,13 @@ safety sweep (tools/eval/run_suite.py --safety; its results: docs/sfsm.md "Appro
 
     test_guard_safety.py BUILD_DIR SCENARIO_DIR OUT_DIR
 
-scenarios/stress/sparse_burster_on_path.yaml, seeds 101 and 102, full 1800 s,
-in-process, MHTC: without the guard (guard_enable=0) the loud sparse burster
-3 um off the track is killed in both seeds (the scenario still stresses what
-it should); with the guard (guard_enable=1) no neuron is damaged, the closest
-approach stays above the damage radius and the electrode still isolates.
+Three stress scenarios, seeds 101 and 102, full length, in-process, MHTC: a
+loud sparse burster 3 um off the track (sparse_burster_on_path), two neurons
+a few tens of um apart (close_pair) and a neuron that drifts towards the tip
+(drift_towards_tip). Without the guard (guard_enable=0) each kills a neuron in
+both seeds (the scenario still stresses what it should); with the guard
+(guard_enable=1) no neuron is damaged, the closest approach stays above the
+damage radius and the electrode still isolates.
 """
 import concurrent.futures
 import json
@@ -17,35 +19,36 @@ import subprocess
 import sys
 
 SEEDS = (101, 102)
+SCENARIOS = ("sparse_burster_on_path", "close_pair", "drift_towards_tip")
 DAMAGE_UM = 12.0  # docs/simulator.md, neuron_model.damage_um default
 
 
 def run(build_dir, scenario, seed, guard, out_root):
-    out = os.path.join(out_root, f"guard{guard}-seed{seed}")
+    name = os.path.splitext(os.path.basename(scenario))[0]
+    out = os.path.join(out_root, f"{name}-guard{guard}-seed{seed}")
     cmd = [os.path.join(build_dir, "bin", "microdrive-session"), "--scenario", scenario, "--seed", str(seed),
            "--bus", "inproc", "--out", out, "--quiet", "--no-lcm", "--no-plots", "--no-recording",
            "--param", f"guard_enable={guard}"]
     p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     path = os.path.join(out, "report.json")
     if p.returncode not in (0, 4) or not os.path.exists(path):
-        return seed, guard, None, p.stdout[-2000:]
+        return name, seed, guard, None, p.stdout[-2000:]
     with open(path) as f:
-        return seed, guard, json.load(f)["electrodes"][0], ""
+        return name, seed, guard, json.load(f)["electrodes"][0], ""
 
 
 def main():
     build_dir, scen_dir, out_root = sys.argv[1:4]
-    scenario = os.path.join(scen_dir, "stress", "sparse_burster_on_path.yaml")
     os.makedirs(out_root, exist_ok=True)
-    jobs = [(s, g) for s in SEEDS for g in (0, 1)]
+    jobs = [(os.path.join(scen_dir, "stress", f"{n}.yaml"), s, g) for n in SCENARIOS for s in SEEDS for g in (0, 1)]
     with concurrent.futures.ThreadPoolExecutor(max_workers=2) as ex:
-        results = list(ex.map(lambda j: run(build_dir, scenario, j[0], j[1], out_root), jobs))
+        results = list(ex.map(lambda j: run(build_dir, j[0], j[1], j[2], out_root), jobs))
     failures = []
-    for seed, guard, e, tail in results:
+    for name, seed, guard, e, tail in results:
         if e is None:
-            failures.append(f"seed {seed} guard {guard}: no report\n{tail}")
+            failures.append(f"{name} seed {seed} guard {guard}: no report\n{tail}")
             continue
-        line = (f"seed {seed} guard_enable={guard}: damaged {e['neurons_damaged']}, closest approach "
+        line = (f"{name} seed {seed} guard_enable={guard}: damaged {e['neurons_damaged']}, closest approach "
                 f"{e['closest_approach_um']} um, isolated {e['isolated']}, guard limited "
                 f"{e['guard_limited_cycles']} cycles, retractions {e['guard_retractions']}")
         print(line)
