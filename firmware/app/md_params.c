@@ -84,7 +84,7 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                                   MD_PARAM_F_CONFIG,
                                   "clustering (every tracker): a model whose clusters include a pair with this "
                                   "ridgeline ratio or more (one mode) is dropped; 0 keeps every model"},
-    [MD_P_GUARD_ENABLE] = {0x2050u, "guard_enable", "", 0.0, 1.0, 0.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
+    [MD_P_GUARD_ENABLE] = {0x2050u, "guard_enable", "", 0.0, 1.0, 1.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
                            "approach guard limits motion (0: it is computed and reported, never applied)"},
     [MD_P_GUARD_GROWTH_STOP] = {0x2051u, "guard_growth_stop", "1/um", 0.001, 1.0, 0.022, MD_PARAM_F_MOTION,
                                 "approach guard: amplitude growth (ln per um of advance) that blocks advancing"},
