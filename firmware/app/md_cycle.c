@@ -67,7 +67,7 @@ static void guard_cfg_from(const md_params_t *p, ag_config_t *cfg)
     cfg->move_near_um = md_params_get(p, MD_P_GUARD_MOVE_NEAR_UM);
     cfg->retract_um = md_params_get(p, MD_P_GUARD_RETRACT_UM);
     cfg->climb_free_frac = md_params_get(p, MD_P_GUARD_CLIMB_FRAC);
-    cfg->climb_frac = fmin(cfg->climb_frac, cfg->climb_free_frac); /* a unit at its ceiling is known to be close */
+    cfg->climb_frac = md_params_get(p, MD_P_GUARD_CEILING_CLIMB);
     cfg->growth_slow = md_params_get(p, MD_P_GUARD_GROWTH_SLOW);
     cfg->growth_max = md_params_get(p, MD_P_GUARD_GROWTH_MAX);
     cfg->fence_drop_frac = md_params_get(p, MD_P_GUARD_FENCE_DROP);

@@ -120,6 +120,9 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
     [MD_P_GUARD_CREEP_HORIZON_S] = {0x205Eu, "guard_creep_horizon_s", "s", 1.0, 3600.0, 30.0, MD_PARAM_F_MOTION,
                                     "approach guard: the tissue's give-back due within this time limits advances and "
                                     "retracts"},
+    [MD_P_GUARD_CEILING_CLIMB] = {0x205Fu, "guard_ceiling_climb", "", 0.01, 2.0, 0.06, MD_PARAM_F_MOTION,
+                                  "approach guard: rise of a unit's standing level over its ceiling that retracts "
+                                  "(<= guard_climb_frac)"},
     [MD_P_NODE_STATE] = {0x3000u, "node_state", "", 0.0, 255.0, 0.0, RO_LIVE, "NMT state (HEARTBEAT NodeState)"},
     [MD_P_ESTOP_LATCHED] = {0x3001u, "estop_latched", "", 0.0, 1.0, 0.0, RO_LIVE, "1 while the e-stop is latched"},
     [MD_P_UPTIME_S] = {0x3002u, "uptime_s", "s", 0.0, U32_MAX_D, 0.0, RO_LIVE, "seconds since power-on"},

@@ -81,6 +81,7 @@ typedef enum {
     MD_P_GUARD_RELAX_TAU_S,      ///< approach guard: time constant of that give-back
     MD_P_GUARD_PROBE_UM,         ///< approach guard: a probe past the depth fence
     MD_P_GUARD_CREEP_HORIZON_S,  ///< approach guard: give-back counted within this time
+    MD_P_GUARD_CEILING_CLIMB,    ///< approach guard: climb over a unit's ceiling that retracts
     /* diagnostics (0x3xxx), read-only */
     MD_P_NODE_STATE,
     MD_P_ESTOP_LATCHED,

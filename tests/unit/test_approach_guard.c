@@ -212,6 +212,27 @@ static void test_a_unit_saturating_at_its_ceiling_holds_the_electrode(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, z, g.fence_um);
 }
 
+static void test_a_neuron_drifting_onto_a_tip_at_its_ceiling_is_given_way(void)
+{
+    /* Near the soma A(d) is flat: a neuron 6 µm off the track that got its
+     * ceiling 17 µm from the tip grows by only ~14 % as it drifts to the
+     * damage radius (3 µm per minute). A smaller climb over the ceiling must
+     * retract the tip first. */
+    without_tissue_give_back();
+    const double z = 100.0;
+    double soma = z + sqrt(17.0 * 17.0 - 36.0);
+    g.ceil[0] = (ag_ceiling_t){AG_UNIT_RAW, law(60.0, 6.0, soma - z), cfg.growth_stop, 0u};
+    g.n_ceil = 1u;
+    double closest = HUGE_VAL;
+    for (int k = 0; k < 120 && g.retractions == 0u; ++k) {
+        closest = fmin(closest, hypot(6.0, soma - z));
+        step1(law(60.0, 6.0, soma - z), z, 0.0);
+        soma -= 0.5;
+    }
+    TEST_ASSERT_EQUAL_UINT32(1u, g.retractions);
+    TEST_ASSERT_TRUE_MESSAGE(closest > 12.0, "the tip came within the damage radius");
+}
+
 static void test_the_give_back_of_an_advance_retracts_before_it_comes(void)
 {
     /* After a descent part of every advance is still to come back towards
@@ -443,6 +464,7 @@ int main(void)
     RUN_TEST(test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way);
     RUN_TEST(test_a_slow_creep_towards_a_standing_tip_adds_up_to_a_retraction);
     RUN_TEST(test_a_unit_saturating_at_its_ceiling_holds_the_electrode);
+    RUN_TEST(test_a_neuron_drifting_onto_a_tip_at_its_ceiling_is_given_way);
     RUN_TEST(test_the_give_back_of_an_advance_retracts_before_it_comes);
     RUN_TEST(test_a_neuron_on_the_path_in_relaxing_tissue_is_never_reached);
     RUN_TEST(test_the_fence_follows_a_unit_that_moves_away);

@@ -18,7 +18,7 @@ void ag_config_default(ag_config_t *cfg)
     cfg->amp_slow = 15.0;
     cfg->amp_stop = 80.0;
     cfg->move_near_um = 10.0;
-    cfg->climb_frac = 0.15;
+    cfg->climb_frac = 0.06;
     cfg->climb_free_frac = 0.15;
     cfg->retract_um = 10.0;
     cfg->still_um = 3.0;
@@ -419,11 +419,11 @@ static double creep_soon_um(const ag_state_t *s)
     return s->pending_um * (1.0 - exp(-s->cfg.creep_horizon_s / s->cfg.relax_tau_s));
 }
 
-/* Rule 7: a unit that will pass its ceiling (or amp_stop) by climb_frac once
+/* Rule 7: a unit that will pass its ceiling (or amp_stop) by climb_free_frac once
  * the give-back of the horizon has come, predicted with its growth. */
 static bool creep_ahead(const ag_state_t *s, const ag_snapshot_t *now)
 {
-    const double rise = 1.0 + s->cfg.climb_frac;
+    const double rise = 1.0 + s->cfg.climb_free_frac; /* a prediction: the wider margin */
     const double soon = creep_soon_um(s);
     for (uint8_t i = 0u; i < s->n_ceil; ++i) {
         const double a = unit_amp(now, s->ceil[i].id);

@@ -72,7 +72,7 @@
 ///     minutes (time constant relax_tau_s), carrying the neurons below with
 ///     it. The part due within creep_horizon_s shortens every ceiling's
 ///     room, and when a ceiling unit (or the loudest unit against amp_stop)
-///     would rise to (1 + climb_frac) times its ceiling once it has come,
+///     would rise to (1 + climb_free_frac) times its ceiling once it has come,
 ///     the guard retracts now rather than wait for rule 3 to see the climb.
 ///     The horizon spans a few intervals, not the whole give-back: the guard
 ///     looks again every interval, and what comes later is judged nearer.
