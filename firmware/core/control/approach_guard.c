@@ -199,9 +199,9 @@ static void set_ceiling(ag_state_t *s, uint32_t id, double amp, double growth)
 /* A unit's growth on the latest advance; false if it was not measured. */
 static bool advance_growth(const ag_state_t *s, uint32_t id, double *g)
 {
-    for (uint8_t u = 0u; u < s->grown.n; ++u) {
-        if (s->grown.unit[u].id == id) {
-            *g = s->grown.unit[u].amp; /* the snapshot holds growth, not amplitude */
+    for (uint8_t u = 0u; u < s->n_grown; ++u) {
+        if (s->grown[u].id == id) {
+            *g = s->grown[u].growth;
             return true;
         }
     }
@@ -213,8 +213,8 @@ static bool advance_growth(const ag_state_t *s, uint32_t id, double *g)
  * take it inside the damage radius. Every unit's growth is kept for rule 5. */
 static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out)
 {
-    ag_snapshot_t grown;
-    memset(&grown, 0, sizeof grown);
+    ag_growth_t grown[AG_UNITS_MAX] = {{0u, 0.0}}; /* the previous advance is read until the end */
+    uint8_t n_grown = 0u;
     for (uint8_t k = 0u; k < now->n; ++k) {
         const ag_unit_t *u = &now->unit[k];
         double g = 0.0;
@@ -230,9 +230,10 @@ static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out
         if (g >= s->cfg.growth_stop && (u->amp >= s->cfg.amp_slow || steep_before)) {
             set_ceiling(s, u->id, u->amp, g);
         }
-        grown.unit[grown.n++] = (ag_unit_t){u->id, g};
+        grown[n_grown++] = (ag_growth_t){u->id, g};
     }
-    s->grown = grown;
+    memcpy(s->grown, grown, (size_t)n_grown * sizeof grown[0]);
+    s->n_grown = n_grown;
 }
 
 /* Rule 4: ceilings of units not seen for AG_HISTORY intervals lapse. */

@@ -143,6 +143,12 @@ typedef struct {
     uint8_t top_k;           ///< robust amplitude = k-th largest window amplitude (1..AG_TOP_K_MAX)
 } ag_config_t;
 
+/// A unit's growth measured on an advance.
+typedef struct {
+    uint32_t id;
+    double growth;  ///< 1/µm: ln-amplitude growth per µm of advance
+} ag_growth_t;
+
 /// A unit's ceiling.
 typedef struct {
     uint32_t id;
@@ -158,7 +164,8 @@ typedef struct {
     uint8_t hist_head;  ///< slot of the next entry
     ag_ceiling_t ceil[AG_UNITS_MAX];
     uint8_t n_ceil;
-    ag_snapshot_t grown;      ///< each unit's growth (in .amp) on the latest advance: rules 1 and 5
+    ag_growth_t grown[AG_UNITS_MAX];  ///< each unit's growth on the latest advance: rules 1 and 5
+    uint8_t n_grown;
     ag_snapshot_t still_ref;  ///< per unit, its lowest level at the current standstill (rule 3)
     double last_growth;       ///< largest unit growth of the latest interval (0 if none measured)
     double fence_um;          ///< rule 6: deepest depth allowed (HUGE_VAL: no fence)
