@@ -84,6 +84,9 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
                                   MD_PARAM_F_CONFIG,
                                   "clustering (every tracker): a model whose clusters include a pair with this "
                                   "ridgeline ratio or more (one mode) is dropped; 0 keeps every model"},
+    [MD_P_MHTC_COUNT_SIGMA] = {0x2043u, "mhtc_count_sigma", "", 0.0, 100.0, MHTC_COUNT_SIGMA_DEFAULT, MD_PARAM_F_CONFIG,
+                               "MHTC: a cluster continuing a track whose spike count differs by "
+                               "a factor e^s from the track's last costs half a nat; 0: no count term"},
     [MD_P_GUARD_ENABLE] = {0x2050u, "guard_enable", "", 0.0, 1.0, 1.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
                            "approach guard limits motion (0: it is computed and reported, never applied)"},
     [MD_P_GUARD_GROWTH_STOP] = {0x2051u, "guard_growth_stop", "1/um", 0.001, 1.0, 0.022, MD_PARAM_F_MOTION,

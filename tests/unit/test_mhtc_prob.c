@@ -161,7 +161,8 @@ static void test_prop_4_2_product_of_a(void)
         inst_t in;
         make_instance(&rng, &in);
         double cost[LAP_MAX_ROWS * LAP_MAX_COLS];
-        TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&in.zeta[0][0], 5u, in.g, in.pd, in.nt, in.ln, in.lf, cost));
+        TEST_ASSERT_EQUAL_INT(MD_OK,
+                              mhtc_assoc_costs(&in.zeta[0][0], 5u, in.g, in.pd, in.nt, in.ln, in.lf, NULL, cost));
         /* odometer over (nt + 2)^g labels: j < nt target, nt new, nt+1 false */
         const size_t base = in.nt + 2u;
         size_t combos = 1u;
@@ -209,18 +210,67 @@ static void test_costs_forbid_off_diagonal_and_bad_input(void)
     const double zeta[2][3] = {{0.5, 0.5, 0.0}, {0.2, 0.3, 0.5}};
     const double pd[2] = {0.9, 0.8};
     double cost[2 * 6];
-    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&zeta[0][0], 3u, 2u, pd, 2u, 0.01, 0.015, cost));
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&zeta[0][0], 3u, 2u, pd, 2u, 0.01, 0.015, NULL, cost));
     TEST_ASSERT_TRUE(cost[0 * 6 + 1] >= LAP_FORBIDDEN); /* ζ = 0 */
     TEST_ASSERT_TRUE(cost[0 * 6 + 3] >= LAP_FORBIDDEN); /* row 0, new column of row 1 */
     TEST_ASSERT_TRUE(cost[1 * 6 + 4] >= LAP_FORBIDDEN); /* row 1, false column of row 0 */
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, -log(0.5 / 0.1), cost[0]);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, -log(0.4 * 0.2), cost[1 * 6 + 3]);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, -log(0.6 * 0.2), cost[1 * 6 + 5]);
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 2u, 0.01, 0.015, cost));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 2u, 0.01, 0.015, NULL, cost));
     const double pd1[2] = {1.0, 0.8};
-    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 3u, 2u, pd1, 2u, 0.01, 0.015, cost));
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 3u, 2u, pd1, 2u, 0.01, 0.015, NULL, cost));
     const double zn[1][1] = {{NAN}};
-    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, mhtc_assoc_costs(&zn[0][0], 1u, 1u, NULL, 0u, 0.01, 0.015, cost));
+    TEST_ASSERT_EQUAL_INT(MD_E_NUMERIC, mhtc_assoc_costs(&zn[0][0], 1u, 1u, NULL, 0u, 0.01, 0.015, NULL, cost));
+}
+
+/* A neuron's main cluster (90 spikes) and its burst spikes (10) against a track that had 88: the
+ * count term makes the swap (burst cluster continues the track) cost ln²(11/89)/(2σ²) more, and
+ * leaves births, false alarms and unknown counts alone. */
+static void test_count_term(void)
+{
+    const double zeta[2][2] = {{0.1, 0.9}, {0.1, 0.9}}; /* both clusters fit the track equally */
+    const double pd[1] = {0.9};
+    const double n_cluster[2] = {90.0, 10.0};
+    const double n_expect[1] = {88.0};
+    const double sigma = 0.5;
+    double off[2 * 5];
+    double on[2 * 5];
+    const mhtc_count_term_t count = {n_cluster, n_expect, NULL, sigma};
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, NULL, off));
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &count, on));
+    const double l_main = log(91.0 / 89.0);
+    const double l_burst = log(11.0 / 89.0);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, off[0] + l_main * l_main / (2.0 * sigma * sigma), on[0]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, off[5] + l_burst * l_burst / (2.0 * sigma * sigma), on[5]);
+    TEST_ASSERT_TRUE(on[5] - on[0] > 8.0); /* the swap is no longer a coin toss */
+    for (size_t c = 1u; c < 5u; ++c) {     /* births and false alarms unchanged */
+        TEST_ASSERT_EQUAL_DOUBLE(off[c], on[c]);
+        TEST_ASSERT_EQUAL_DOUBLE(off[5u + c], on[5u + c]);
+    }
+    const double unknown[1] = {0.0}; /* no detection yet: no term */
+    const mhtc_count_term_t none = {n_cluster, unknown, NULL, sigma};
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &none, on));
+    TEST_ASSERT_EQUAL_DOUBLE(off[5], on[5]);
+    const mhtc_count_term_t zero = {NULL, NULL, NULL, 0.0}; /* σ = 0: off, arrays not read */
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &zero, on));
+    TEST_ASSERT_EQUAL_DOUBLE(off[5], on[5]);
+    const mhtc_count_term_t negative = {n_cluster, n_expect, NULL, -0.5};
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &negative, on));
+    const mhtc_count_term_t nan_sigma = {n_cluster, n_expect, NULL, NAN};
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &nan_sigma, on));
+    const double bad_count[2] = {90.0, INFINITY};
+    const mhtc_count_term_t inf_count = {bad_count, n_expect, NULL, sigma};
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &inf_count, on));
+    const mhtc_count_term_t no_counts = {NULL, n_expect, NULL, sigma};
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &no_counts, on));
+    const double two[1] = {2.0}; /* a track that missed once: σ doubled, a quarter of the cost */
+    const mhtc_count_term_t missed = {n_cluster, n_expect, two, sigma};
+    TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &missed, on));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, off[5] + l_burst * l_burst / (8.0 * sigma * sigma), on[5]);
+    const double below_one[1] = {0.5};
+    const mhtc_count_term_t narrow = {n_cluster, n_expect, below_one, sigma};
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &narrow, on));
 }
 
 static void test_pd_rule(void)
@@ -247,6 +297,7 @@ int main(void)
     RUN_TEST(test_p3_table_values);
     RUN_TEST(test_prop_4_2_product_of_a);
     RUN_TEST(test_costs_forbid_off_diagonal_and_bad_input);
+    RUN_TEST(test_count_term);
     RUN_TEST(test_pd_rule);
     RUN_TEST(test_log_norm);
     return UNITY_END();

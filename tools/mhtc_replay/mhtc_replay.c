@@ -11,7 +11,7 @@
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
 ///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
-///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]
+///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--count-sigma S] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]
 /// Writes OUT/labels.csv, OUT/labels_online.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -45,6 +45,7 @@ typedef struct {
     int quiet;
     double warm_jeffreys;
     double unimodal_ratio;
+    double count_sigma;
     double n_scan;
     double q_move;
     double k_miss;
@@ -83,7 +84,7 @@ static int rp_usage(const char *msg)
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
                   "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] "
-                  "[--unimodal-ratio R] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
+                  "[--unimodal-ratio R] [--count-sigma S] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -154,6 +155,8 @@ static int rp_option_mhtc(rp_options_t *o, const char *a, const char *v)
         bad = rp_num(v, 0.0, (double)(MHTC_HIST_MAX - 1u), &o->n_scan) || (fabs(o->n_scan - floor(o->n_scan)) > 0.0);
     } else if (strcmp(a, "--unimodal-ratio") == 0) {
         bad = rp_num(v, 0.0, 1.0, &o->unimodal_ratio);
+    } else if (strcmp(a, "--count-sigma") == 0) {
+        bad = rp_num(v, 0.0, 100.0, &o->count_sigma);
     } else if (strcmp(a, "--em-tol") == 0) {
         bad = rp_num(v, 1e-15, 1e-2, &o->em_tol);
     } else {
@@ -174,6 +177,7 @@ static void rp_defaults(rp_options_t *o)
     o->em_tol = 0.0; /* 0: the clustering default */
     o->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
     o->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
+    o->count_sigma = MHTC_COUNT_SIGMA_DEFAULT;
     o->n_scan = (double)MHTC_N_SCAN_DEFAULT;
     o->q_move = MHTC_Q_MOVE_PER_UM_DEFAULT;
     o->k_miss = 0.0; /* 0: the tracker's default */
@@ -422,6 +426,7 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
     (void)fprintf(f, "  \"intervals\": %u,\n  \"spikes\": %zu,\n  \"q_uv\": %g,\n  \"init_uv\": %g,\n  \"L\": %zu,\n",
                   done, spikes, o->q_uv, o->init_uv, o->L);
     (void)fprintf(f, "  \"unimodal_ratio\": %g,\n", o->unimodal_ratio);
+    (void)fprintf(f, "  \"count_sigma\": %g,\n", o->count_sigma);
     const ic_stats_t *c = &g_ws.stats;
     (void)fprintf(f, "  \"sample_rate_hz\": %u,\n  \"detections_not_kept\": %llu,\n", g_fs_hz,
                   (unsigned long long)g_not_kept);
@@ -554,6 +559,7 @@ static int rp_setup(const rp_options_t *o, int16_t **x)
     }
     cfg.warm_jeffreys = o->warm_jeffreys;
     cfg.unimodal_ratio = o->unimodal_ratio;
+    cfg.count_sigma = o->count_sigma;
     cfg.n_scan = (uint32_t)o->n_scan;
     cfg.q_move_per_um = o->q_move;
     if (o->k_miss > 0.0) {

@@ -46,6 +46,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->share_jeffreys = MHTC_SHARE_JEFFREYS_DEFAULT;
     cfg->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
     cfg->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
+    cfg->count_sigma = MHTC_COUNT_SIGMA_DEFAULT;
 }
 
 md_status_t mhtc_config_check(const mhtc_config_t *c)
@@ -66,7 +67,8 @@ md_status_t mhtc_config_check(const mhtc_config_t *c)
                     (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) && (c->em.tol > 0.0) &&
                     (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) && (c->gnn_gate_chi2 > 0.0) &&
                     (c->share_jeffreys >= 0.0) && isfinite(c->share_jeffreys) && (c->warm_jeffreys >= 0.0) &&
-                    (c->unimodal_ratio >= 0.0) && (c->unimodal_ratio <= 1.0) &&
+                    (c->unimodal_ratio >= 0.0) && (c->unimodal_ratio <= 1.0) && (c->count_sigma >= 0.0) &&
+                    isfinite(c->count_sigma) &&
                     ((c->evidence == CLUSTER_EVIDENCE_LAPLACE) || (c->evidence == CLUSTER_EVIDENCE_BIC));
     return ok ? MD_OK : MD_E_ARG;
 }
@@ -208,6 +210,9 @@ size_t mhtc_fill_targets(const mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
         memcpy(t->s_cov, ws->pred_s[r], sizeof t->s_cov);
         memcpy(t->cluster_cov, ws->pred_c[r], sizeof t->cluster_cov);
         t->p_detect = st->pool[r].p_detect;
+        ws->n_expect[j] = st->pool[r].n_last;
+        /* each miss makes the rate less certain (a neuron that pauses may fire again only partly) */
+        ws->count_spread[j] = 1.0 + (double)st->pool[r].misses;
     }
     return h->n_tracks;
 }
@@ -347,8 +352,10 @@ static bool mhtc_associate(mhtc_state_t *st, mhtc_workspace_t *ws, mhtc_model_t 
     for (size_t j = 0u; j < nt; ++j) {
         pd[j] = ws->targets[j].p_detect;
     }
+    /* in the workspace, not on the stack: this frame lies on the firmware's deepest path */
+    ws->count = (mhtc_count_term_t){&m->fit.n_soft[1], ws->n_expect, ws->count_spread, st->cfg.count_sigma};
     if (mhtc_assoc_costs(&m->fit.zeta[0][0], EM_J_MAX + 1u, m->g, pd, nt, st->cfg.lambda_new, st->cfg.lambda_false,
-                         ws->cost) != MD_OK) {
+                         &ws->count, ws->cost) != MD_OK) {
         return false;
     }
     ws->murty.solves = 0u;

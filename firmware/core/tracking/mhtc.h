@@ -66,6 +66,9 @@
 #ifndef MHTC_N_SCAN_DEFAULT
 #define MHTC_N_SCAN_DEFAULT 3u  ///< default of mhtc_config_t.n_scan (docs/mhtc.md)
 #endif
+#ifndef MHTC_COUNT_SIGMA_DEFAULT
+#define MHTC_COUNT_SIGMA_DEFAULT 0.5  ///< default of mhtc_config_t.count_sigma (docs/mhtc.md)
+#endif
 #ifndef MHTC_UNIMODAL_RATIO_DEFAULT
 #define MHTC_UNIMODAL_RATIO_DEFAULT 0.8  ///< default of mhtc_config_t.unimodal_ratio (docs/mhtc.md)
 #endif
@@ -109,6 +112,8 @@ typedef struct {
     double q_move_per_um;         ///< electrode travel adds (κ·travel)²·x̂x̂ᵀ to Q: an uncertain gain of the
                                   ///< whole waveform (κ = this, relative amplitude change per µm, 1 σ;
                                   ///< thesis §4.6); 0 = Q independent of travel
+    double count_sigma;           ///< spike-count term of a continuation (mhtc_count_term_t): ln-count spread σ;
+                                  ///< 0 = eq. 4.25 alone
     cluster_evidence_t evidence;  ///< P4: Laplace (thesis) or BIC
     em_options_t em;              ///< EM iteration bound/tolerance
     double shape_prior_width;     ///< see em_evidence.h
@@ -252,6 +257,9 @@ typedef struct {
     double pred_s[MHTC_POOL][EM_D_MAX * EM_D_MAX];  ///< S_j (eq. 4.13)
     double pred_c[MHTC_POOL][EM_D_MAX * EM_D_MAX];  ///< Σ_j mapped into B^k (seeding)
     em_target_t targets[EM_J_MAX];
+    double n_expect[EM_J_MAX];      ///< per target, its spikes at its last detection (count term)
+    double count_spread[EM_J_MAX];  ///< per target, the count term's σ in units of cfg.count_sigma
+    mhtc_count_term_t count;        ///< the count term of the model being associated
     double cost[LAP_MAX_ROWS * LAP_MAX_COLS];
     murty_workspace_t murty;
     mhtc_cand_t cand[MHTC_L_MAX];

@@ -91,8 +91,9 @@ static md_status_t mhtc_assign_gnn(const mhtc_state_t *st, mhtc_workspace_t *ws,
     for (size_t j = 0u; j < nt; ++j) {
         pd[j] = ws->targets[j].p_detect;
     }
+    /* eq. 4.25 alone: with the count term GNN's single assignment lost more IDs than it kept (docs/mhtc.md) */
     md_status_t rc = mhtc_assoc_costs(&m->fit.zeta[0][0], EM_J_MAX + 1u, m->g, pd, nt, st->cfg.lambda_new,
-                                      st->cfg.lambda_false, ws->cost);
+                                      st->cfg.lambda_false, NULL, ws->cost);
     const size_t cols = nt + 2u * m->g;
     for (size_t g = 0u; (rc == MD_OK) && (g < m->g); ++g) {
         for (size_t j = 0u; (rc == MD_OK) && (j < nt); ++j) {

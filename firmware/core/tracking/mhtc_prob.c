@@ -65,11 +65,51 @@ md_status_t mhtc_log_p3(const double *pd, size_t n_t, size_t g, double lambda0, 
     return MD_OK;
 }
 
+/* ln of the count term of cluster r continuing target j (mhtc_count_term_t); 0 when it is off. */
+static double mhtc_log_count_weight(const mhtc_count_term_t *count, size_t r, size_t j)
+{
+    if ((count == NULL) || !(count->sigma > 0.0) || !(count->n_expect[j] > 0.0)) {
+        return 0.0;
+    }
+    const double sigma = count->sigma * ((count->spread != NULL) ? count->spread[j] : 1.0);
+    const double ratio = log((fmax(count->n_cluster[r], 0.0) + 1.0) / (count->n_expect[j] + 1.0));
+    return -ratio * ratio / (2.0 * sigma * sigma);
+}
+
+static bool mhtc_count_term_ok(const mhtc_count_term_t *count, size_t g, size_t n_t)
+{
+    if (count == NULL) {
+        return true;
+    }
+    if (!(count->sigma >= 0.0) || !isfinite(count->sigma)) {
+        return false;
+    }
+    if (!(count->sigma > 0.0)) {
+        return true; /* off */
+    }
+    if ((count->n_cluster == NULL) || ((count->n_expect == NULL) && (n_t > 0u))) {
+        return false;
+    }
+    for (size_t r = 0u; r < g; ++r) {
+        if (!isfinite(count->n_cluster[r])) {
+            return false;
+        }
+    }
+    for (size_t j = 0u; j < n_t; ++j) {
+        if (!isfinite(count->n_expect[j]) ||
+            ((count->spread != NULL) && (!(count->spread[j] >= 1.0) || !isfinite(count->spread[j])))) {
+            return false;
+        }
+    }
+    return true;
+}
+
 md_status_t mhtc_assoc_costs(const double *zeta, size_t zeta_stride, size_t g, const double *pd, size_t n_t,
-                             double lambda_new, double lambda_false, double *cost)
+                             double lambda_new, double lambda_false, const mhtc_count_term_t *count, double *cost)
 {
     if ((zeta == NULL) || (cost == NULL) || ((pd == NULL) && (n_t > 0u)) || (g == 0u) || (g > LAP_MAX_ROWS) ||
-        (n_t > MHTC_PROB_NT_MAX) || (zeta_stride < n_t + 1u) || !(lambda_new > 0.0) || !(lambda_false > 0.0)) {
+        (n_t > MHTC_PROB_NT_MAX) || (zeta_stride < n_t + 1u) || !(lambda_new > 0.0) || !(lambda_false > 0.0) ||
+        !mhtc_count_term_ok(count, g, n_t)) {
         return MD_E_ARG;
     }
     const size_t cols = n_t + 2u * g;
@@ -84,7 +124,7 @@ md_status_t mhtc_assoc_costs(const double *zeta, size_t zeta_stride, size_t g, c
         for (size_t c = 0u; c < cols; ++c) {
             double a = 0.0;
             if (c < n_t) {
-                a = z[c + 1u] / (1.0 - pd[c]); /* a_gj, eq. 4.25 */
+                a = z[c + 1u] / (1.0 - pd[c]) * exp(mhtc_log_count_weight(count, r, c)); /* a_gj, eq. 4.25 */
             } else if (c == n_t + r) {
                 a = lambda_new / l0 * z[0]; /* α^ν_g */
             } else if (c == n_t + g + r) {

@@ -9,6 +9,7 @@
 #ifndef MHTC_PROB_H
 #define MHTC_PROB_H
 
+#include <stdbool.h>
 #include <stddef.h>
 
 #include "md_status.h"
@@ -46,8 +47,23 @@ md_status_t mhtc_log_p3(const double *pd, size_t n_t, size_t g, double lambda0, 
 /// with row stride zeta_stride ≥ n_t + 1. Zero entries of A, and the
 /// off-diagonal cells of its two diagonal blocks, get LAP_FORBIDDEN.
 /// MD_E_ARG on bad sizes, pd outside (0, 1) or λ ≤ 0; MD_E_NUMERIC on NaN ζ.
+/// The spike-count term of a continuation (ours, not the thesis'): a neuron
+/// fires at about the same rate from one interval to the next, so cluster r
+/// continuing target j is weighted by exp(-ln²((n_r + 1) / (m_j + 1)) / (2σ_j²)),
+/// n_r the cluster's spike count, m_j the target's at its last detection,
+/// σ_j = σ·s_j. At most 1: it only penalises a continuation whose count
+/// departs from the track's, such as a neuron's few attenuated burst spikes
+/// taking over its track. Births and false alarms are not weighted.
+typedef struct {
+    const double *n_cluster;  ///< g soft counts n_r (cluster r + 1)
+    const double *n_expect;   ///< n_t counts m_j (≤ 0: unknown, no term)
+    const double *spread;     ///< n_t factors s_j ≥ 1 (NULL: all 1)
+    double sigma;             ///< σ, ln-count spread; 0: no term
+} mhtc_count_term_t;
+
+/// As above; count NULL (or count->sigma 0) leaves eq. 4.25 unchanged.
 md_status_t mhtc_assoc_costs(const double *zeta, size_t zeta_stride, size_t g, const double *pd, size_t n_t,
-                             double lambda_new, double lambda_false, double *cost);
+                             double lambda_new, double lambda_false, const mhtc_count_term_t *count, double *cost);
 
 /// log Σ_l exp(-cost_l) over n costs (the denominator of eq. 4.30 restricted
 /// to the L best, Remark 4.3). n ≥ 1.
