@@ -76,6 +76,8 @@ static void guard_cfg_from(const md_params_t *p, ag_config_t *cfg)
     cfg->relax_tau_s = md_params_get(p, MD_P_GUARD_RELAX_TAU_S);
     cfg->probe_um = md_params_get(p, MD_P_GUARD_PROBE_UM);
     cfg->creep_horizon_s = md_params_get(p, MD_P_GUARD_CREEP_HORIZON_S);
+    cfg->baseline_min_um = md_params_get(p, MD_P_GUARD_BASELINE_UM);
+    cfg->baseline_new_um = fmin(md_params_get(p, MD_P_GUARD_BASELINE_NEW_UM), cfg->baseline_min_um);
 }
 
 static void mhtc_cfg_from(const md_params_t *p, mhtc_config_t *cfg)

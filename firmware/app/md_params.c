@@ -126,6 +126,11 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
     [MD_P_GUARD_CEILING_CLIMB] = {0x205Fu, "guard_ceiling_climb", "", 0.01, 2.0, 0.06, MD_PARAM_F_MOTION,
                                   "approach guard: rise of a unit's standing level over its ceiling that retracts "
                                   "(<= guard_climb_frac)"},
+    [MD_P_GUARD_BASELINE_UM] = {0x2060u, "guard_baseline_um", "um", 1.0, 100.0, 15.0, MD_PARAM_F_MOTION,
+                                "approach guard: shortest advance over which a unit's growth is measured"},
+    [MD_P_GUARD_BASELINE_NEW_UM] = {0x2061u, "guard_baseline_new_um", "um", 1.0, 100.0, 8.0, MD_PARAM_F_MOTION,
+                                    "approach guard: shortest advance over which the growth of a unit first seen "
+                                    "less than guard_baseline_um back is measured (<= guard_baseline_um)"},
     [MD_P_NODE_STATE] = {0x3000u, "node_state", "", 0.0, 255.0, 0.0, RO_LIVE, "NMT state (HEARTBEAT NodeState)"},
     [MD_P_ESTOP_LATCHED] = {0x3001u, "estop_latched", "", 0.0, 1.0, 0.0, RO_LIVE, "1 while the e-stop is latched"},
     [MD_P_UPTIME_S] = {0x3002u, "uptime_s", "s", 0.0, U32_MAX_D, 0.0, RO_LIVE, "seconds since power-on"},

@@ -83,6 +83,8 @@ typedef enum {
     MD_P_GUARD_PROBE_UM,         ///< approach guard: a probe past the depth fence
     MD_P_GUARD_CREEP_HORIZON_S,  ///< approach guard: give-back counted within this time
     MD_P_GUARD_CEILING_CLIMB,    ///< approach guard: climb over a unit's ceiling that retracts
+    MD_P_GUARD_BASELINE_UM,      ///< approach guard: shortest advance over which growth is measured
+    MD_P_GUARD_BASELINE_NEW_UM,  ///< approach guard: the same for a unit first seen less far back
     /* diagnostics (0x3xxx), read-only */
     MD_P_NODE_STATE,
     MD_P_ESTOP_LATCHED,

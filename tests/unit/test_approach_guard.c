@@ -1,6 +1,6 @@
 /// @file test_approach_guard.c
 /// Approach guard on scripted amplitude sequences: a neuron on the path
-/// (steep growth), a neuron passed at a safe lateral distance (shallow
+/// (steep growth), a new track rising under a louder unit, a neuron passed at a safe lateral distance (shallow
 /// growth), noise, a unit that climbs while the electrode stands (fast, or
 /// creeping slowly as relaxing tissue carries it), artefact
 /// bursts that must not freeze the search, amp_stop, the depth fence, the
@@ -113,6 +113,50 @@ static void test_advances_are_shortened_while_a_loud_unit_may_be_ahead(void)
     TEST_ASSERT_EQUAL_INT(AG_SLOWED, out.action);
 }
 
+/* One interval with the robust amplitude and one track. */
+static ag_output_t step2(double raw, uint32_t id, double amp, double depth, double want)
+{
+    const ag_unit_t u[2] = {{AG_UNIT_RAW, raw}, {id, amp}};
+    const ag_input_t in = {u, (amp > 0.0) ? 2u : 1u, depth, next_time(), want};
+    ag_output_t out;
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
+    return out;
+}
+
+/* A track born one 10 µm step ago, under a louder flat unit, rising by
+ * `growth` per µm on the next step; returns that interval's output. */
+static ag_output_t new_track_rising(double growth)
+{
+    step2(30.0, 0u, 0.0, 0.0, 10.0);
+    step2(30.0, 7u, 16.0, 10.0, 10.0);
+    return step2(30.0, 7u, 16.0 * exp(growth * 10.0), 20.0, 20.0);
+}
+
+static void test_a_new_track_rising_faster_than_any_neuron_beside_the_track_gets_a_ceiling(void)
+{
+    /* Its only history is one step, shorter than baseline_min_um: the
+     * short baseline judges it, from growth_max on. */
+    const ag_output_t out = new_track_rising(cfg.growth_max * 1.08);
+    TEST_ASSERT_EQUAL_UINT8(1u, g.n_ceil);
+    TEST_ASSERT_EQUAL_UINT32(7u, g.ceil[0].id);
+    TEST_ASSERT_EQUAL_INT(AG_BLOCKED, out.action);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.move_um);
+}
+
+static void test_a_new_track_rising_like_a_neuron_beside_the_track_only_slows(void)
+{
+    /* Between growth_stop and growth_max over the short baseline: what a
+     * neuron 25 µm beside the track reads when its track is born. No
+     * ceiling, and rule 5 still counts its growth unmeasured. */
+    const ag_output_t out = new_track_rising(0.5 * (cfg.growth_stop + cfg.growth_max));
+    TEST_ASSERT_EQUAL_UINT8(0u, g.n_ceil);
+    TEST_ASSERT_EQUAL_INT(AG_SLOWED, out.action);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, cfg.move_near_um, out.move_um);
+    setUp();
+    const ag_output_t flat = new_track_rising(0.0);
+    TEST_ASSERT_EQUAL_INT(AG_SLOWED, flat.action);
+}
+
 static void test_a_loud_unit_beside_the_tip_does_not_slow_the_search(void)
 {
     /* Passing a neuron 25 µm off the track at its depth: loud, but its
@@ -221,7 +265,7 @@ static void test_a_neuron_drifting_onto_a_tip_at_its_ceiling_is_given_way(void)
     without_tissue_give_back();
     const double z = 100.0;
     double soma = z + sqrt(17.0 * 17.0 - 36.0);
-    g.ceil[0] = (ag_ceiling_t){AG_UNIT_RAW, law(60.0, 6.0, soma - z), cfg.growth_stop, 0u};
+    g.ceil[0] = (ag_ceiling_t){AG_UNIT_RAW, law(60.0, 6.0, soma - z), cfg.growth_stop, z, 0.0, 0u};
     g.n_ceil = 1u;
     double closest = HUGE_VAL;
     for (int k = 0; k < 120 && g.retractions == 0u; ++k) {
@@ -268,6 +312,40 @@ static void test_a_neuron_on_the_path_in_relaxing_tissue_is_never_reached(void)
         give_back += (out.move_um > 0.0) ? 0.24 * out.move_um : 0.0;
     }
     TEST_ASSERT_TRUE_MESSAGE(closest > 12.0, "the tip came within the damage radius");
+}
+
+/* Stands 17 µm above a faint neuron on the path whose ceiling was set there
+ * with `pending` µm of the tissue's give-back still to come; returns the
+ * closest distance over 60 intervals. */
+static double stand_over_a_ceiling_while_the_tissue_gives_back(double pending)
+{
+    double z = 100.0;
+    double soma = z + 17.0;
+    g.pending_um = pending;
+    g.ceil[0] = (ag_ceiling_t){AG_UNIT_RAW, law(30.0, 0.0, 17.0), cfg.growth_stop, z, pending, 0u};
+    g.n_ceil = 1u;
+    double closest = HUGE_VAL;
+    for (int k = 0; k < 60; ++k) {
+        const double back = pending * (1.0 - exp(-10.0 / 120.0));
+        soma -= back;
+        pending -= back;
+        closest = fmin(closest, soma - z);
+        z += step1(law(30.0, 0.0, soma - z), z, 0.0).move_um;
+    }
+    return closest;
+}
+
+static void test_a_ceiling_set_near_the_soma_gives_way_as_the_tissue_gives_back(void)
+{
+    /* After a descent 12 µm of give-back are to come, more than the room the
+     * ceiling left; near the soma the amplitude hardly grows (+9 % from 17 to
+     * 12 µm), so the tip must follow the give-back, not the amplitude. */
+    const double closest = stand_over_a_ceiling_while_the_tissue_gives_back(12.0);
+    TEST_ASSERT_TRUE_MESSAGE(closest > 15.0, "the tip did not give way");
+    TEST_ASSERT_TRUE(g.retractions >= 1u);
+    setUp();
+    stand_over_a_ceiling_while_the_tissue_gives_back(0.0); /* settled tissue: the tip stays */
+    TEST_ASSERT_EQUAL_UINT32(0u, g.retractions);
 }
 
 static void test_the_fence_follows_a_unit_that_moves_away(void)
@@ -431,6 +509,9 @@ static void test_invalid_input_holds_and_is_counted(void)
     c.fence_lapse = 0u;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
     c = cfg;
+    c.baseline_new_um = c.baseline_min_um + 1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
+    c = cfg;
     c.top_k = 0u;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_init(&g, &c));
 }
@@ -459,6 +540,8 @@ int main(void)
     RUN_TEST(test_a_neuron_on_the_path_is_never_reached);
     RUN_TEST(test_a_neuron_passed_at_a_safe_distance_does_not_stop_the_advance);
     RUN_TEST(test_advances_are_shortened_while_a_loud_unit_may_be_ahead);
+    RUN_TEST(test_a_new_track_rising_faster_than_any_neuron_beside_the_track_gets_a_ceiling);
+    RUN_TEST(test_a_new_track_rising_like_a_neuron_beside_the_track_only_slows);
     RUN_TEST(test_a_loud_unit_beside_the_tip_does_not_slow_the_search);
     RUN_TEST(test_noise_at_a_standstill_never_retracts);
     RUN_TEST(test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way);
@@ -467,6 +550,7 @@ int main(void)
     RUN_TEST(test_a_neuron_drifting_onto_a_tip_at_its_ceiling_is_given_way);
     RUN_TEST(test_the_give_back_of_an_advance_retracts_before_it_comes);
     RUN_TEST(test_a_neuron_on_the_path_in_relaxing_tissue_is_never_reached);
+    RUN_TEST(test_a_ceiling_set_near_the_soma_gives_way_as_the_tissue_gives_back);
     RUN_TEST(test_the_fence_follows_a_unit_that_moves_away);
     RUN_TEST(test_the_fence_holds_when_a_ceiling_lapses);
     RUN_TEST(test_a_probe_past_the_fence_finds_the_neuron_beside_the_track);

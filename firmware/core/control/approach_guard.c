@@ -14,6 +14,7 @@ void ag_config_default(ag_config_t *cfg)
     cfg->growth_stop = 0.022;
     cfg->growth_slow = 0.011;
     cfg->baseline_min_um = 15.0;
+    cfg->baseline_new_um = 8.0;
     cfg->amp_floor = 12.0;
     cfg->amp_slow = 15.0;
     cfg->amp_stop = 80.0;
@@ -44,7 +45,8 @@ static bool fraction(double v)
 
 md_status_t ag_config_check(const ag_config_t *cfg)
 {
-    if (cfg == NULL || !positive(cfg->growth_stop) || !positive(cfg->baseline_min_um) || !positive(cfg->amp_floor) ||
+    if (cfg == NULL || !positive(cfg->growth_stop) || !positive(cfg->baseline_min_um) ||
+        !positive(cfg->baseline_new_um) || cfg->baseline_new_um > cfg->baseline_min_um || !positive(cfg->amp_floor) ||
         !positive(cfg->amp_slow) || !positive(cfg->amp_stop) || !positive(cfg->move_near_um) ||
         !positive(cfg->climb_frac) || !(cfg->climb_free_frac >= cfg->climb_frac) || !positive(cfg->retract_um) ||
         !positive(cfg->still_um) || cfg->amp_floor > cfg->amp_slow || !(cfg->amp_slow < cfg->amp_stop) ||
@@ -148,17 +150,31 @@ static const ag_snapshot_t *history_back(const ag_state_t *s, uint8_t i)
 }
 
 /* Rule 1 for one unit: growth per µm of advance against the newest interval
- * recorded at least baseline_min_um shallower that saw it. */
-static bool unit_growth(const ag_state_t *s, const ag_snapshot_t *now, const ag_unit_t *u, double *g)
+ * recorded at least baseline_min_um shallower that saw it; for a unit first
+ * seen less than that far back (a new track), against the newest at least
+ * baseline_new_um shallower. */
+static bool unit_growth(const ag_state_t *s, const ag_snapshot_t *now, const ag_unit_t *u, double *g, bool *short_base)
 {
+    *short_base = false;
+    double new_travel = 0.0;
+    double new_before = 0.0;
     for (uint8_t i = 0u; i < s->hist_n; ++i) {
         const ag_snapshot_t *then = history_back(s, i);
         const double travel = now->depth_um - then->depth_um;
         const double before = unit_amp(then, u->id);
-        if (travel >= s->cfg.baseline_min_um && before > 0.0) {
+        if (before > 0.0 && travel >= s->cfg.baseline_min_um) {
             *g = log(u->amp / before) / travel;
             return true;
         }
+        if (before > 0.0 && travel >= s->cfg.baseline_new_um && !(new_before > 0.0)) {
+            new_travel = travel;
+            new_before = before;
+        }
+    }
+    if (new_before > 0.0) {
+        *short_base = true;
+        *g = log(u->amp / new_before) / new_travel;
+        return true;
     }
     return false;
 }
@@ -181,12 +197,12 @@ static ag_ceiling_t *find_ceiling(ag_state_t *s, uint32_t id)
 }
 
 /* A lower ceiling replaces a higher one; the growth kept is the larger. */
-static void set_ceiling(ag_state_t *s, uint32_t id, double amp, double growth)
+static void set_ceiling(ag_state_t *s, uint32_t id, double amp, double growth, double depth_um)
 {
     ag_ceiling_t *c = find_ceiling(s, id);
     if (c == NULL && s->n_ceil < AG_UNITS_MAX) {
         c = &s->ceil[s->n_ceil++];
-        *c = (ag_ceiling_t){id, amp, growth, 0u};
+        *c = (ag_ceiling_t){id, amp, growth, depth_um, s->pending_um, 0u};
         s->ceilings_set++;
         return;
     }
@@ -210,7 +226,10 @@ static bool advance_growth(const ag_state_t *s, uint32_t id, double *g)
 
 /* Rule 1: units steep on this advance and the one before get a ceiling; a
  * loud one (amp_slow) on the first: one more advance of its growth could
- * take it inside the damage radius. Every unit's growth is kept for rule 5. */
+ * take it inside the damage radius. A new unit, measured over a short
+ * baseline, is steep from growth_max on: that short a reading is noisier,
+ * and a neuron beside the track reads up to growth_stop there when its track
+ * is born. Growth over the long baseline is kept for rule 5. */
 static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out)
 {
     ag_growth_t grown[AG_UNITS_MAX] = {{0u, 0.0}}; /* the previous advance is read until the end */
@@ -219,7 +238,8 @@ static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out
         const ag_unit_t *u = &now->unit[k];
         double g = 0.0;
         double g_before = 0.0;
-        if (u->amp < s->cfg.amp_floor || !unit_growth(s, now, u, &g)) {
+        bool short_base = false;
+        if (u->amp < s->cfg.amp_floor || !unit_growth(s, now, u, &g, &short_base)) {
             continue;
         }
         if (g > out->growth) {
@@ -227,10 +247,13 @@ static void mark_steep(ag_state_t *s, const ag_snapshot_t *now, ag_output_t *out
             out->growth_unit = u->id;
         }
         const bool steep_before = advance_growth(s, u->id, &g_before) && g_before >= s->cfg.growth_stop;
-        if (g >= s->cfg.growth_stop && (u->amp >= s->cfg.amp_slow || steep_before)) {
-            set_ceiling(s, u->id, u->amp, g);
+        const double stop = short_base ? s->cfg.growth_max : s->cfg.growth_stop;
+        if (g >= stop && (u->amp >= s->cfg.amp_slow || steep_before)) {
+            set_ceiling(s, u->id, u->amp, g, now->depth_um);
         }
-        grown[n_grown++] = (ag_growth_t){u->id, g};
+        if (!short_base) { /* over a short baseline rule 5 still counts it unmeasured */
+            grown[n_grown++] = (ag_growth_t){u->id, g};
+        }
     }
     memcpy(s->grown, grown, (size_t)n_grown * sizeof grown[0]);
     s->n_grown = n_grown;
@@ -436,19 +459,36 @@ static bool creep_ahead(const ag_state_t *s, const ag_snapshot_t *now)
     return largest_amp(now) * exp(s->cfg.growth_stop * soon) >= rise * s->cfg.amp_stop;
 }
 
+/* Rule 7: once some of the give-back due when a ceiling was set has come,
+ * the retraction that puts the tip where the whole of it leaves the ceiling's
+ * geometry (0: none due). */
+static double given_back_um(const ag_state_t *s, const ag_snapshot_t *now)
+{
+    double back = 0.0;
+    for (uint8_t i = 0u; i < s->n_ceil; ++i) {
+        const ag_ceiling_t *c = &s->ceil[i];
+        const double allowed = c->depth_um - fmax(c->pending_um - s->pending_um, 0.0);
+        if (unit_amp(now, c->id) > 0.0 && now->depth_um - allowed > 0.1 * s->cfg.still_um) { /* not rounding */
+            back = fmax(back, now->depth_um - (c->depth_um - c->pending_um));
+        }
+    }
+    return back;
+}
+
 /* Rules 3, 6 and 7: a retraction, when a unit came closer or will; the tip
  * may not go back past where it retracted to. */
 static bool retract(ag_state_t *s, const ag_snapshot_t *now, bool still, double *step)
 {
     const bool up = climbed(s, now, still); /* always: it keeps the standstill's reference */
     const bool creeping = creep_ahead(s, now);
-    if (!up && !creeping) {
+    const double over = given_back_um(s, now);
+    if (!up && !creeping && !(over > 0.0)) {
         return false;
     }
     s->still_ref.n = 0u;
     s->retractions++;
-    s->creep_retractions += (!up && creeping) ? 1u : 0u;
-    *step = fmin(*step, -s->cfg.retract_um);
+    s->creep_retractions += (!up) ? 1u : 0u;
+    *step = fmin(*step, (up || creeping) ? -s->cfg.retract_um : -over);
     put_fence(s, now->depth_um + *step);
     return true;
 }

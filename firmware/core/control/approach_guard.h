@@ -30,7 +30,12 @@
 ///     baseline_min_um shallower that saw the unit; a unit (a >= amp_floor)
 ///     whose growth reached growth_stop on two advances in a row — or on one,
 ///     once it is at amp_slow — is steep like a neuron on the path: its
-///     present amplitude becomes its ceiling;
+///     present amplitude becomes its ceiling. A unit first seen less than
+///     baseline_min_um back (a new track, often a neuron that was masked) is
+///     measured against the newest interval at least baseline_new_um
+///     shallower, and is steep from growth_max on (that reading is noisier,
+///     and a neuron beside the track can read growth_stop when its track is
+///     born); rule 5 still counts its growth unmeasured;
 ///  2. amp_stop is a ceiling for every unit, whatever its growth;
 ///  3. a unit's level (mean of its last AG_STILL_INTERVALS amplitudes, all
 ///     at this depth; >= amp_slow) that climbed while the electrode stood
@@ -76,6 +81,11 @@
 ///     the guard retracts now rather than wait for rule 3 to see the climb.
 ///     The horizon spans a few intervals, not the whole give-back: the guard
 ///     looks again every interval, and what comes later is judged nearer.
+///     And a ceiling keeps the geometry of the moment it was set: once some
+///     of the give-back due then has come, the tip retracts by all of it,
+///     so that the tissue settles where it was against the tip (near the
+///     soma the amplitude hardly grows, and the give-back after a descent
+///     is more than the room a ceiling leaves).
 /// Invalid input (non-finite, or time running backwards) holds the electrode
 /// and is counted.
 ///
@@ -125,6 +135,7 @@ typedef struct {
     double growth_stop;      ///< 1/µm: ln-amplitude growth per µm of advance that marks a unit steep
     double growth_slow;      ///< 1/µm: growth below which a loud unit does not slow the advance (rule 5)
     double baseline_min_um;  ///< shortest travel over which growth is measured
+    double baseline_new_um;  ///< the same for a unit not seen baseline_min_um back (a new track)
     double amp_floor;        ///< below this robust amplitude (noise RMS units) growth is not judged
     double amp_slow;         ///< from this amplitude advances are at most move_near_um
     double amp_stop;         ///< a ceiling for every unit
@@ -152,9 +163,11 @@ typedef struct {
 /// A unit's ceiling.
 typedef struct {
     uint32_t id;
-    double amp;      ///< its ceiling
-    double growth;   ///< its growth when it was set (>= growth_stop)
-    uint8_t unseen;  ///< intervals since the unit was last seen
+    double amp;         ///< its ceiling
+    double growth;      ///< its growth when it was set (>= growth_stop)
+    double depth_um;    ///< where the tip was when it was set
+    double pending_um;  ///< the tissue's give-back still to come then (rule 7)
+    uint8_t unseen;     ///< intervals since the unit was last seen
 } ag_ceiling_t;
 
 typedef struct {
