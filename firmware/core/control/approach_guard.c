@@ -459,9 +459,11 @@ static bool creep_ahead(const ag_state_t *s, const ag_snapshot_t *now)
     return largest_amp(now) * exp(s->cfg.growth_stop * soon) >= rise * s->cfg.amp_stop;
 }
 
-/* Rule 7: once some of the give-back due when a ceiling was set has come,
- * the retraction that puts the tip where the whole of it leaves the ceiling's
- * geometry (0: none due). */
+/* Rule 7: the retraction that keeps the geometry of a ceiling's moment: the
+ * tip follows the give-back come since it was set (0: none due). Following
+ * it as it comes, not all of it at once, keeps the distance the ceiling
+ * chose, no more: all at once held a tip beside a neuron 25 µm off the track
+ * ~12 µm further away for minutes. */
 static double given_back_um(const ag_state_t *s, const ag_snapshot_t *now)
 {
     double back = 0.0;
@@ -469,7 +471,7 @@ static double given_back_um(const ag_state_t *s, const ag_snapshot_t *now)
         const ag_ceiling_t *c = &s->ceil[i];
         const double allowed = c->depth_um - fmax(c->pending_um - s->pending_um, 0.0);
         if (unit_amp(now, c->id) > 0.0 && now->depth_um - allowed > 0.1 * s->cfg.still_um) { /* not rounding */
-            back = fmax(back, now->depth_um - (c->depth_um - c->pending_um));
+            back = fmax(back, now->depth_um - allowed);
         }
     }
     return back;
@@ -485,7 +487,9 @@ static bool retract(ag_state_t *s, const ag_snapshot_t *now, bool still, double 
     if (!up && !creeping && !(over > 0.0)) {
         return false;
     }
-    s->still_ref.n = 0u;
+    if (up || creeping) { /* following the give-back keeps the geometry, and the standstill */
+        s->still_ref.n = 0u;
+    }
     s->retractions++;
     s->creep_retractions += (!up) ? 1u : 0u;
     *step = fmin(*step, (up || creeping) ? -s->cfg.retract_um : -over);

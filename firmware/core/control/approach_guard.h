@@ -81,11 +81,11 @@
 ///     the guard retracts now rather than wait for rule 3 to see the climb.
 ///     The horizon spans a few intervals, not the whole give-back: the guard
 ///     looks again every interval, and what comes later is judged nearer.
-///     And a ceiling keeps the geometry of the moment it was set: once some
-///     of the give-back due then has come, the tip retracts by all of it,
-///     so that the tissue settles where it was against the tip (near the
-///     soma the amplitude hardly grows, and the give-back after a descent
-///     is more than the room a ceiling leaves).
+///     And a ceiling keeps the geometry of the moment it was set: the tip
+///     follows the give-back due then as it comes, retracting by what came
+///     since (near the soma the amplitude hardly grows, and the give-back
+///     after a descent is more than the room a ceiling leaves). Following
+///     the give-back keeps the standstill of rule 3.
 /// Invalid input (non-finite, or time running backwards) holds the electrode
 /// and is counted.
 ///
