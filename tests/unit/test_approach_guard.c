@@ -292,6 +292,15 @@ static void test_the_give_back_of_an_advance_retracts_before_it_comes(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, z - cfg.retract_um, out.fence_um);
 }
 
+/* The tissue's give-back over one 10 s interval (time constant 120 s), taken
+ * from what is still to come. */
+static double give_back_over_an_interval(double *to_come)
+{
+    const double back = *to_come * (1.0 - exp(-10.0 / 120.0));
+    *to_come -= back;
+    return back;
+}
+
 static void test_a_neuron_on_the_path_in_relaxing_tissue_is_never_reached(void)
 {
     /* Each advance drags the tissue 30 % of the way along and 24 % of it
@@ -302,9 +311,7 @@ static void test_a_neuron_on_the_path_in_relaxing_tissue_is_never_reached(void)
     double give_back = 0.0;
     double closest = HUGE_VAL;
     for (int k = 0; k < 150; ++k) {
-        const double back = give_back * (1.0 - exp(-10.0 / 120.0));
-        soma -= back;
-        give_back -= back;
+        soma -= give_back_over_an_interval(&give_back);
         closest = fmin(closest, soma - z);
         const ag_output_t out = step1(law(80.0, 0.0, soma - z), z, 20.0);
         z += out.move_um;
@@ -326,9 +333,7 @@ static double stand_over_a_ceiling_while_the_tissue_gives_back(double pending)
     g.n_ceil = 1u;
     double closest = HUGE_VAL;
     for (int k = 0; k < 60; ++k) {
-        const double back = pending * (1.0 - exp(-10.0 / 120.0));
-        soma -= back;
-        pending -= back;
+        soma -= give_back_over_an_interval(&pending);
         closest = fmin(closest, soma - z);
         z += step1(law(30.0, 0.0, soma - z), z, 0.0).move_um;
     }
