@@ -5,7 +5,7 @@ One recording through both: microdrive-session runs the controller in the
 closed loop (in-process) and leaves the samples it recorded (recording.json +
 recording.bin) and its telemetry (candump.log); mhtc-replay then runs over the
 recording with its defaults, which are the controller's tracker parameters
-(MHTC, q = 10 uV, unimodal ratio 0.8). Both run firmware/core/pipeline/
+(MHTC, q = 10 uV, unimodal ratio 0.9). Both run firmware/core/pipeline/
 interval_chain, so per interval the spikes (sample index of each window's
 minimum) and their track IDs must be identical: the controller's are the
 TLM_SPIKES frames of the interval's cycle (read by microdrive.session, by
@@ -130,7 +130,7 @@ def main():
     with open(os.path.join(out_dir, "summary.json")) as f:
         summary = json.load(f)
     # the controller's tracker parameters (md_params.c defaults) are the replay's defaults
-    want = {"tracker": a.tracker, "q_uv": 10.0, "init_uv": 10.0, "unimodal_ratio": 0.8, "L": 8}
+    want = {"tracker": a.tracker, "q_uv": 10.0, "init_uv": 10.0, "unimodal_ratio": 0.9, "L": 8}
     got = {k: summary[k] for k in want}
     if got != want:
         sys.exit(f"FAIL: replay's tracker parameters {got}, the controller's {want}")

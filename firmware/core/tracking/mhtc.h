@@ -70,7 +70,7 @@
 #define MHTC_COUNT_SIGMA_DEFAULT 0.5  ///< default of mhtc_config_t.count_sigma (docs/mhtc.md)
 #endif
 #ifndef MHTC_UNIMODAL_RATIO_DEFAULT
-#define MHTC_UNIMODAL_RATIO_DEFAULT 0.8  ///< default of mhtc_config_t.unimodal_ratio (docs/mhtc.md)
+#define MHTC_UNIMODAL_RATIO_DEFAULT 0.9  ///< default of mhtc_config_t.unimodal_ratio (docs/mhtc.md)
 #endif
 #ifndef MHTC_WARM_JEFFREYS_DEFAULT
 #define MHTC_WARM_JEFFREYS_DEFAULT HUGE_VAL  ///< default of mhtc_config_t.warm_jeffreys (docs/mhtc.md)
