@@ -32,6 +32,7 @@ static void sfsm_cfg_from(const md_params_t *p, sfsm_config_t *cfg)
     cfg->gamma1 = md_params_get(p, MD_P_SFSM_GAMMA1);
     cfg->gamma2 = md_params_get(p, MD_P_SFSM_GAMMA2);
     cfg->gamma3 = md_params_get(p, MD_P_SFSM_GAMMA3);
+    cfg->snr_isolate = md_params_get(p, MD_P_SFSM_SNR_ISOLATE);
     cfg->snr_drop_frac = md_params_get(p, MD_P_SFSM_SNR_DROP);
     cfg->snr_min = md_params_get(p, MD_P_SFSM_SNR_MIN);
     cfg->wait_r = (uint8_t)md_params_get_u32(p, MD_P_SFSM_WAIT_R);

@@ -76,6 +76,9 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
     [MD_P_SFSM_SEARCH_SPAN_UM] = {0x2038u, "sfsm_search_span_um", "um", 0.0, 5000.0, 100.0, MD_PARAM_F_MOTION,
                                   "SFSM: Spike Search turns this far past the last depth with a dominant track "
                                   "(twice at most, then searches on; 0: never)"},
+    [MD_P_SFSM_SNR_ISOLATE] = {0x2039u, "sfsm_snr_isolate", "", 1.0, 1000.0, 24.0, MD_PARAM_F_MOTION,
+                               "SFSM: a dominant track this loud declares isolation at once, whatever its IQM "
+                               "(Omega3 by loudness)"},
     [MD_P_MHTC_Q_UV] = {0x2040u, "mhtc_q_uv", "uV", 0.01, 1000.0, 10.0, MD_PARAM_F_CONFIG,
                         "MHTC process noise std per waveform sample and interval"},
     [MD_P_TRACKER] = {0x2041u, "tracker", "", 0.0, 3.0, 0.0, MD_PARAM_F_CONFIG | MD_PARAM_F_INTEGER,

@@ -63,6 +63,7 @@ typedef enum {
     MD_P_SC_TOL_UM,              ///< SNR-curve optimiser ε (eq. 2.1 converged)
     MD_P_SFSM_SNR_MIN,           ///< SFSM noise floor: tracks below this SNR are never dominant
     MD_P_SFSM_SEARCH_SPAN_UM,    ///< SFSM search leash around the last dominant track
+    MD_P_SFSM_SNR_ISOLATE,       ///< SFSM: dominant SNR that declares isolation at once, whatever the IQM
     MD_P_MHTC_Q_UV,              ///< MHTC process noise std per waveform sample and interval
     MD_P_TRACKER,                ///< tracker: 0 MHTC, 1 MAP-NN, 2 ML-NN, 3 GNN (mhtc_tracker_t)
     MD_P_MHTC_UNIMODAL_RATIO,    ///< clustering: a model with two clusters forming one mode is dropped

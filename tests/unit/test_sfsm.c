@@ -574,6 +574,29 @@ static void test_omega3_isolates_from_any_state(void)
     }
 }
 
+/* Ω3 by loudness: with the defaults a dominant track at snr_isolate stops
+ * the search however low its IQM (crowded tissue), one just below it does
+ * not. */
+static void test_omega3_by_snr_in_crowded_tissue(void)
+{
+    start_with_floor();
+    sfsm_input_t in = base();
+    in.iqm = 2.5; /* neighbours close in feature space: far below γ3 */
+    in.snr = cfg.snr_isolate - 0.5;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_GRADIENT_SEARCH, out.state);
+    TEST_ASSERT_TRUE(out.move_um > 0.0);
+    in.snr = cfg.snr_isolate;
+    run(&in, 1u);
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
+    sfsm_config_t bad = cfg;
+    bad.snr_isolate = 0.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad.snr_isolate = NAN;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+}
+
 /* Ω3 from Spike Search, Gradient Search, Isolate Neuron and Window Limit
  * (no reference there), and a louder other track while isolated. */
 static void test_omega3_isolates_without_a_reference(void)
@@ -933,6 +956,7 @@ int main(void)
     RUN_TEST(test_gradient_search_turns_when_snr_falls);
     RUN_TEST(test_omega3_isolates_from_any_state);
     RUN_TEST(test_omega3_isolates_without_a_reference);
+    RUN_TEST(test_omega3_by_snr_in_crowded_tissue);
     RUN_TEST(test_losing_all_spikes);
     RUN_TEST(test_search_leash_looks_both_sides_of_a_lost_neuron);
     RUN_TEST(test_search_leash_needs_an_anchor_and_a_span);

@@ -83,7 +83,7 @@ static const sfsm_state_info_t SFSM_INFO[SFSM_STATE_COUNT] = {
 static const char *const SFSM_COND_DOC[SFSM_COND_COUNT] = {
     [SFSM_C_HALT] = "e-stop or fault flag, or invalid input",
     [SFSM_C_RESUME] = "operator resume, no e-stop, no fault, valid input",
-    [SFSM_C_OMEGA3] = "IQM >= γ3 (Ω3)",
+    [SFSM_C_OMEGA3] = "IQM >= γ3 (Ω3), or SNR >= isolation-at-once SNR",
     [SFSM_C_OMEGA3_OTHER] = "another track dominant with IQM >= γ3 and SNR > isolation SNR",
     [SFSM_C_LIMIT_ISOLATED] = "step blocked by the window edge, IQM >= γ2",
     [SFSM_C_LIMIT_FIRST] = "step blocked by the window edge, no reversal yet",
@@ -174,6 +174,7 @@ void sfsm_config_default(sfsm_config_t *cfg)
     cfg->gamma1 = 2.0;
     cfg->gamma2 = 3.0;
     cfg->gamma3 = 12.0;
+    cfg->snr_isolate = 24.0;
     cfg->snr_drop_frac = 0.85;
     cfg->snr_min = 9.0;
     cfg->wait_r = 3u;
@@ -196,10 +197,11 @@ md_status_t sfsm_config_check(const sfsm_config_t *cfg)
     const bool ok = isfinite(cap) && (cap > 0.0) && sfsm_step_ok(cfg->move_search_um, cap) &&
                     sfsm_step_ok(cfg->move_sample_um, cap) && sfsm_step_ok(cfg->move_resample_um, cap) &&
                     isfinite(cfg->gamma3) && (cfg->gamma1 > 0.0) && (cfg->gamma1 < cfg->gamma2) &&
-                    (cfg->gamma2 < cfg->gamma3) && (cfg->snr_drop_frac > 0.0) && (cfg->snr_drop_frac < 1.0) &&
-                    isfinite(cfg->snr_min) && (cfg->snr_min >= 0.0) && (cfg->wait_r >= 1u) &&
-                    (cfg->wait_r <= SFSM_R_MAX) && (cfg->lost_cycles >= 1u) && isfinite(cfg->search_span_um) &&
-                    (cfg->search_span_um >= 0.0) && ((cfg->initial_dir == 1) || (cfg->initial_dir == -1));
+                    (cfg->gamma2 < cfg->gamma3) && isfinite(cfg->snr_isolate) && (cfg->snr_isolate > 0.0) &&
+                    (cfg->snr_drop_frac > 0.0) && (cfg->snr_drop_frac < 1.0) && isfinite(cfg->snr_min) &&
+                    (cfg->snr_min >= 0.0) && (cfg->wait_r >= 1u) && (cfg->wait_r <= SFSM_R_MAX) &&
+                    (cfg->lost_cycles >= 1u) && isfinite(cfg->search_span_um) && (cfg->search_span_um >= 0.0) &&
+                    ((cfg->initial_dir == 1) || (cfg->initial_dir == -1));
     return ok ? MD_OK : MD_E_ARG;
 }
 
@@ -252,7 +254,11 @@ static bool sfsm_cond_holds(const sfsm_t *sm, const sfsm_input_t *in, const sfsm
     switch (c) {
     case SFSM_C_HALT: return !v || in->estop || in->fault;
     case SFSM_C_RESUME: return v && in->resume && !in->estop && !in->fault;
-    case SFSM_C_OMEGA3: return v && f->dom && (in->iqm >= k->gamma3);
+    /* Ω3 means "advancing further risks the neuron". A lone neuron's IQM grows
+     * with its SNR (~0.5 SNR, docs/sfsm.md), so γ3 stops the tip at SNR ~24; in
+     * crowded tissue the IQM stays low while the tip closes in, and the SNR
+     * alone keeps that meaning. */
+    case SFSM_C_OMEGA3: return v && f->dom && ((in->iqm >= k->gamma3) || (in->snr >= k->snr_isolate));
     case SFSM_C_OMEGA3_OTHER: return v && f->dom && !f->ours && (in->iqm >= k->gamma3) && (in->snr > sm->ref_snr);
     case SFSM_C_LIMIT_ISOLATED: return v && f->at_limit && f->ours && (in->iqm >= k->gamma2);
     case SFSM_C_LIMIT_FIRST: return v && f->at_limit && (sm->reversals == 0u);

@@ -48,7 +48,7 @@ typedef enum {
 typedef enum {
     SFSM_C_HALT = 0,            ///< e-stop or fault flag, or invalid input
     SFSM_C_RESUME,              ///< operator resume, no e-stop/fault, valid input
-    SFSM_C_OMEGA3,              ///< dominant track with IQM >= γ3 (Table 2.1 Ω3)
+    SFSM_C_OMEGA3,              ///< dominant track with IQM >= γ3 (Table 2.1 Ω3) or SNR >= snr_isolate (ours)
     SFSM_C_OMEGA3_OTHER,        ///< Ω3 on a louder track than the isolated one (SNR > reference)
     SFSM_C_LIMIT_ISOLATED,      ///< at the window edge, IQM >= γ2
     SFSM_C_LIMIT_FIRST,         ///< at the window edge, no reversal yet
@@ -132,6 +132,7 @@ typedef struct {
     double gamma1;            ///< γ1: IQM to follow the gradient (default 2)
     double gamma2;            ///< γ2: IQM to declare isolation at the peak (default 3)
     double gamma3;            ///< γ3: IQM to declare isolation at once (default 12)
+    double snr_isolate;       ///< dominant SNR that declares isolation at once, whatever the IQM (default 24, ours)
     double snr_drop_frac;     ///< leave Neuron Isolated below this × isolation SNR (thesis 0.85)
     double snr_min;           ///< a track below this SNR is noise floor, never dominant (default 9, ours)
     uint8_t wait_r;           ///< R of WAIT transitions (default 3)
