@@ -144,6 +144,9 @@ def summarise(runs):
     psi = sum(e["tracking"]["psi"] for e in els if e["tracking"]["psi"] is not None)
     s["psi_per_interval"] = (psi / cycles) if cycles else None
     s["mean_id_switches"] = statistics.fmean([e["tracking"]["id_switches"] for e in els]) if els else None
+    ids = [max(e["tracking"].get("track_ids_per_neuron", {}).values(), default=0) for e in els]
+    s["max_track_ids_per_neuron"] = max(ids, default=None)
+    s["electrodes_over_two_track_ids"] = sum(1 for n in ids if n > 2)
     s["cycles"] = sum(e["cycles"] for e in els)
     closest = [e["closest_approach_um"] for e in els if e.get("closest_approach_um") is not None]
     s["closest_approach_min_um"] = min(closest) if closest else None

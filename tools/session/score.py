@@ -232,6 +232,7 @@ def score_electrode(e, status_list, cycles, spikes, hyp, truth, args):
     spurious = sum(1 for trk, cnt in track_units.items()
                    if max([n for u, n in cnt.items() if u is not None and u >= 0] or [0]) * 2 < sum(cnt.values()))
     consistent = switches = total = 0
+    ids = {}                                         # neuron -> distinct track IDs that held it
     for u, seq in labels.items():
         named = [x for x in seq if x is not None]
         total += len(seq)
@@ -239,12 +240,14 @@ def score_electrode(e, status_list, cycles, spikes, hyp, truth, args):
             major = Counter(named).most_common(1)[0][0]
             consistent += sum(1 for x in seq if x == major)
         switches += sum(1 for a, b in zip(named, named[1:]) if a != b)
+        ids[u] = len(set(named))
     g = [hyp[(e, iv.cycle)] for iv in ivs if (e, iv.cycle) in hyp]
     tracking = {
         "accuracy": (sum(accs) / len(accs)) if accs else None,
         "accuracy_pairs": len(accs),
         "id_consistency": (consistent / total) if total else None,
         "id_switches": switches,
+        "track_ids_per_neuron": {str(u): n for u, n in sorted(ids.items())},
         "spurious_tracks": spurious,
         "tracks": len(track_units),
         "psi": sum(abs(a - b) for a, b in zip(g[1:], g)) if g else None,
