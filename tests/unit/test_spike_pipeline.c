@@ -216,6 +216,47 @@ static void test_offline_wrapper_agrees(void)
     }
 }
 
+/* A margin keeps that many raw samples on each side of every window: the
+ * window without sub-sample alignment sits inside it unchanged, the events
+ * and snippets are the same, and events too close to an edge for the margin
+ * are counted as edge windows. Margins the rows cannot hold, a margin with
+ * the extractor's own resampling, or one on the offline path are refused. */
+static void test_margin_keeps_raw_samples_around_each_window(void)
+{
+    size_t n_truth = 0u;
+    synth(6.0, 60.0, 0, 17u, N_MAX, &n_truth);
+    sd_config_t d;
+    sx_config_t x;
+    configs(SD_METHOD_WAVELET, &d, &x);
+    x.subsample = false;
+    TEST_ASSERT_EQUAL_INT(MD_OK, run(&d, &x, N_MAX, 30u, 0u));
+    x.margin = 2u;
+    TEST_ASSERT_EQUAL_INT(MD_OK, run(&d, &x, N_MAX, 30u, 1u));
+    TEST_ASSERT_EQUAL_size_t(2u, g_win[1].margin);
+    TEST_ASSERT_EQUAL_size_t(x.pre_peak, g_win[1].pre_peak);
+    TEST_ASSERT_EQUAL_size_t(g_ev[0].n, g_ev[1].n);
+    TEST_ASSERT_TRUE(g_win[0].n > 10u);
+    TEST_ASSERT_EQUAL_size_t(g_win[0].n, g_win[1].n); /* no event this close to an edge here */
+    for (size_t i = 0u; i < g_win[0].n; ++i) {
+        TEST_ASSERT_EQUAL_UINT32(g_win[0].t[i], g_win[1].t[i]);
+        TEST_ASSERT_EQUAL_INT16_ARRAY(g_win[0].wave[i], &g_win[1].wave[i][2], x.d_w);
+    }
+    TEST_ASSERT_EQUAL_size_t(g_noise[0].n, g_noise[1].n);
+    TEST_ASSERT_EQUAL_MEMORY(g_noise[0].wave, g_noise[1].wave, g_noise[0].n * sizeof g_noise[0].wave[0]);
+    x.margin = SX_MARGIN_MAX + 1u;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sp_init(&g_ch, &d, &x, &g_win[0], &g_noise[0]));
+    x.margin = 2u;
+    x.subsample = true;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sp_init(&g_ch, &d, &x, &g_win[0], &g_noise[0]));
+    x.subsample = false;
+    x.d_w = MD_WAVE_LEN_MAX - 3u; /* d_w + 2 margin above the row */
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sp_init(&g_ch, &d, &x, &g_win[0], &g_noise[0]));
+    configs(SD_METHOD_WAVELET, &d, &x);
+    x.subsample = false;
+    x.margin = 2u;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sx_extract_spikes(g_x, 1000u, &g_ev[0], &x, &g_sp));
+}
+
 /* More events than MD_MAX_SPIKES: the rest are counted, flagged on the
  * windows and snippets, and snippets stay before the last stored event. */
 static void test_overflow_is_counted(void)
@@ -322,6 +363,7 @@ int main(void)
     RUN_TEST(test_boundaries_and_edges);
     RUN_TEST(test_snippets_clear_of_detections);
     RUN_TEST(test_offline_wrapper_agrees);
+    RUN_TEST(test_margin_keeps_raw_samples_around_each_window);
     RUN_TEST(test_overflow_is_counted);
     RUN_TEST(test_states_and_degenerate_input);
     RUN_TEST(test_compact_outputs_feed_pca_and_metrics);

@@ -10,6 +10,11 @@
 
 #define D IC_D
 
+/* The window at the fastest supported rate (32768 Hz: 1.15 ms is 38 samples,
+ * sx_config_default) with the alignment's margin on both sides fits a row. */
+_Static_assert((115u * 32768u + 50000u) / 100000u + 2u * SA_MARGIN <= MD_WAVE_LEN_MAX,
+               "a raw window and its alignment margin fit MD_WAVE_LEN_MAX");
+
 /* The last stage completed (ic_workspace_t.stage). A stage needs the one
  * before it; those after IC_ENDED keep their inputs out of the shared union,
  * so they may run again. */
@@ -50,6 +55,8 @@ md_status_t ic_begin(ic_workspace_t *ws, const ic_config_t *cfg)
     dcfg.interval_s = (double)cfg->num_samples / (double)cfg->sample_rate_hz;
     sx_config_default(&xcfg, cfg->sample_rate_hz);
     xcfg.gain = cfg->gain_uv;
+    xcfg.subsample = false; /* raw windows with a margin, aligned on their template by ic_end */
+    xcfg.margin = SA_MARGIN;
     const uint32_t spacing = cfg->num_samples / (IC_SNIPPET_CANDIDATES * (uint32_t)xcfg.n_noise);
     xcfg.spacing = (spacing > 0u) ? spacing : 1u;
     const md_status_t st = sp_init(&ws->u.sp, &dcfg, &xcfg, &ws->win, &ws->noise);
@@ -97,7 +104,11 @@ md_status_t ic_end(ic_workspace_t *ws)
         st = sp_finish(&ws->u.sp);
     }
     /* MD_E_DEGENERATE (a short or flat interval): the outputs are valid all the same */
-    return stage_done(ws, (st == MD_E_DEGENERATE) ? MD_OK : st, &ws->stats.end_errors, IC_ENDED);
+    st = (st == MD_E_DEGENERATE) ? MD_OK : st;
+    if (st == MD_OK) {
+        st = sa_align_windows(&ws->win, &ws->u.align); /* the detector and extractor are done with u */
+    }
+    return stage_done(ws, st, &ws->stats.end_errors, IC_ENDED);
 }
 
 /* Basis B^k from the windows (or, without spikes, from the noise so that H^k

@@ -9,7 +9,8 @@
 ///     detection and extraction (spike_pipeline.h) into int16 windows aligned
 ///     by their minimum and spike-free noise snippets (§2.2.2.1, §2.2.2.4);
 ///     results do not depend on the chunk sizes;
-///  2. ic_end: flushes detection and extraction;
+///  2. ic_end: flushes detection and extraction and aligns the windows on
+///     their template to a fraction of a sample (spike_align.h);
 ///  3. ic_features: the PCA basis B^k of the windows (§2.2.2.2), which is the
 ///     tracker's measurement matrix H^k (§4.4.2) — from the noise snippets
 ///     when fewer than 2 windows were cut, so H^k stays defined and every track
@@ -62,6 +63,7 @@
 #include "features/pca.h"
 #include "md_config.h"
 #include "metrics/quality.h"
+#include "signal/spike_align.h"
 #include "signal/spike_pipeline.h"
 #include "tracking/mhtc.h"
 
@@ -111,13 +113,14 @@ typedef struct {
     /// Storage of stages that never overlap in time.
     union {
         sp_channel_t sp;        ///< stages 1-2: streaming detector and extractor
+        sa_work_t align;        ///< stage 2, after the extractor: window alignment
         pca_work_t pca;         ///< stage 3: PCA scratch
         mhtc_workspace_t mhtc;  ///< stage 4, and mhtc_hyp_labels after it until ic_score/ic_isolation
         double qm_work[(MD_MAX_SPIKES + MD_MAX_NOISE_SNIPPETS) * IC_D];  ///< stage 5: isolation scratch
     } u;
-    sx_windows_t win;                              ///< aligned spike windows (int16; t: sample of each minimum)
-    sx_snippets_t noise;                           ///< spike-free noise snippets (int16)
-    double y[MD_MAX_SPIKES * IC_D];                ///< spike features, n_spikes × d
+    sx_windows_t win;                ///< spike windows (int16; t: sample of each minimum), aligned by ic_end
+    sx_snippets_t noise;             ///< spike-free noise snippets (int16)
+    double y[MD_MAX_SPIKES * IC_D];  ///< spike features, n_spikes × d
     double noise_y[MD_MAX_NOISE_SNIPPETS * IC_D];  ///< noise features, noise.n × d
     double xi[IC_D * IC_D];                        ///< Ξ
     pca_basis_t basis;                             ///< B^k

@@ -25,13 +25,16 @@ void sx_config_default(sx_config_t *cfg, uint32_t sample_rate_hz)
     cfg->seed = 1u;
     cfg->spacing = (uint32_t)lround(10.0 * fs / (4.0 * 128.0));
     cfg->subsample = true;
+    cfg->margin = 0u;
 }
 
 static int sx_config_valid(const sx_config_t *c)
 {
     return (c->d_w >= 4u) && (c->d_w <= MD_WAVE_LEN_MAX) && (c->pre_peak < c->d_w) && (c->realign <= 1000u) &&
            (!c->subsample || (c->pre_peak >= 1u)) && (c->gain > 0.0) && isfinite(c->gain) &&
-           (c->n_noise <= MD_MAX_NOISE_SNIPPETS) && (c->guard <= 100000u) && (c->spacing <= SD_MAX_INTERVAL_SAMPLES);
+           (c->n_noise <= MD_MAX_NOISE_SNIPPETS) && (c->guard <= 100000u) && (c->spacing <= SD_MAX_INTERVAL_SAMPLES) &&
+           (c->margin <= SX_MARGIN_MAX) && ((c->margin == 0u) || !c->subsample) &&
+           (c->d_w + 2u * c->margin <= MD_WAVE_LEN_MAX);
 }
 
 /* ---- window cutter (shared) --------------------------------------------- */
@@ -114,7 +117,8 @@ static uint32_t sx_resample(const sd_view_t *v, uint32_t start, double delta, co
 /* Realigns t to the first minimum within +-realign (thesis: align by the
  * waveform minimum) and copies the window, offset removed, into row16
  * (saturated, *clipped counts saturations) or rowd (times gain); with
- * c->subsample the window is resampled on the sub-sample minimum. */
+ * c->subsample the window is resampled on the sub-sample minimum, with
+ * c->margin it is copied raw with that many samples more on each side. */
 static sx_cut_t sx_cut(const sd_view_t *v, uint32_t t, const sx_config_t *c, int32_t offset, int16_t *row16,
                        double *rowd, uint32_t *t_out, uint32_t *clipped)
 {
@@ -122,7 +126,7 @@ static sx_cut_t sx_cut(const sd_view_t *v, uint32_t t, const sx_config_t *c, int
         t = sd_view_argmin(v, (t > c->realign) ? (t - c->realign) : 0u, t + c->realign);
     }
     *t_out = t;
-    const uint32_t m = c->subsample ? SX_INTERP_MARGIN : 0u;
+    const uint32_t m = c->subsample ? SX_INTERP_MARGIN : c->margin;
     if ((t < c->pre_peak + m) || ((uint64_t)t - c->pre_peak + c->d_w + m > (uint64_t)v->hi)) {
         return SX_CUT_EDGE;
     }
@@ -140,7 +144,7 @@ static sx_cut_t sx_cut(const sd_view_t *v, uint32_t t, const sx_config_t *c, int
             rowd[j] = c->gain * (double)d;
         }
     } else {
-        *clipped += sx_copy16(v, start, c->d_w, offset, row16);
+        *clipped += sx_copy16(v, start - m, c->d_w + 2u * m, offset, row16); /* raw, with the margin */
     }
     return SX_CUT_OK;
 }
@@ -209,6 +213,9 @@ md_status_t sx_stream_restart(sx_stream_t *sx)
     sx->ev_cursor = 0u;
     sx->win->n = 0u;
     sx->win->d_w = sx->cfg.d_w;
+    sx->win->margin = sx->cfg.margin;
+    sx->win->pre_peak = sx->cfg.pre_peak;
+    sx->win->n_align_clamped = 0u;
     sx->win->gain = sx->cfg.gain;
     sx->win->offset = 0;
     sx->win->n_edge_skipped = 0u;
@@ -239,7 +246,8 @@ md_status_t sx_stream_init(sx_stream_t *sx, const sx_config_t *cfg, const sd_str
     /* a window (with realignment) or a candidate's guard zone must still be in
      * the delay line when the detector lets it go */
     const uint64_t need = (uint64_t)sd_stream_latency(det) + cfg->pre_peak + cfg->d_w + (2u * (uint64_t)cfg->realign) +
-                          (2u * (uint64_t)SX_INTERP_MARGIN) + cfg->guard + SX_SERVICE_MAX + SD_STEP_SAMPLES;
+                          (2u * ((uint64_t)SX_INTERP_MARGIN + cfg->margin)) + cfg->guard + SX_SERVICE_MAX +
+                          SD_STEP_SAMPLES;
     if (need > SD_RING_SAMPLES) {
         return MD_E_ARG;
     }
@@ -256,7 +264,7 @@ static void sx_service_spikes(sx_stream_t *sx, const sd_events_t *ev, const sd_v
     for (size_t k = 0u; (k < MD_MAX_SPIKES) && (sx->ev_cursor < ev->n); ++k) {
         const uint32_t t = ev->t[sx->ev_cursor];
         const uint64_t need = (uint64_t)t + c->realign + c->d_w +
-                              (c->subsample ? SX_INTERP_MARGIN : 0u); /* >= last sample read + 1 */
+                              (c->subsample ? SX_INTERP_MARGIN : c->margin); /* >= last sample read + 1 */
         if (!final && (need > (uint64_t)v->hi + c->pre_peak)) {
             break; /* its samples have not all arrived */
         }
@@ -300,7 +308,8 @@ static void sx_noise_take(sx_stream_t *sx, const sd_events_t *ev, const sd_view_
     uint32_t t_unused = 0u, clipped = 0u;
     sx_config_t c = sx->cfg;
     c.realign = 0u;
-    c.subsample = false; /* noise windows are cut as they are */
+    c.subsample = false; /* noise windows are cut as they are, without a margin */
+    c.margin = 0u;
     (void)sx_cut(v, s + (uint32_t)c.pre_peak, &c, ev->offset, z->wave[slot], NULL, &t_unused, &clipped);
     z->start[slot] = s;
     z->n = (slot >= z->n) ? (slot + 1u) : z->n;
@@ -401,9 +410,9 @@ md_status_t sx_snippet_to_double(const sx_snippets_t *s, size_t i, double *dst)
 md_status_t sx_extract_spikes(const int16_t *x, size_t n, const sd_events_t *ev, const sx_config_t *cfg,
                               sx_spikes_t *out)
 {
-    if ((x == NULL) || (ev == NULL) || (cfg == NULL) || (out == NULL) || !sx_config_valid(cfg) ||
+    if ((x == NULL) || (ev == NULL) || (cfg == NULL) || (out == NULL) || !sx_config_valid(cfg) || (cfg->margin > 0u) ||
         (ev->n > MD_MAX_SPIKES) || (n > SD_MAX_INTERVAL_SAMPLES)) {
-        return MD_E_ARG;
+        return MD_E_ARG; /* raw windows with a margin are the streaming path's */
     }
     const sd_view_t v = {x, UINT32_MAX, 0u, (uint32_t)n};
     out->n = 0u;

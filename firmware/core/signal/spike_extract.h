@@ -46,7 +46,11 @@ typedef struct {
     uint64_t seed;     ///< seed of the snippet positions (deterministic)
     uint32_t spacing;  ///< mean gap between snippet candidates, samples
     bool subsample;    ///< align spike windows on the sub-sample minimum (below); noise snippets are never shifted
+    uint32_t margin;   ///< raw samples kept on each side of a spike window for a later alignment
+                       ///< (spike_align.h), 0..SX_MARGIN_MAX; needs subsample off
 } sx_config_t;
+
+#define SX_MARGIN_MAX 4u  ///< largest margin of a raw window
 
 #define SX_INTERP_MARGIN 2u  ///< samples the sub-sample resampling reads on each side of a window
 
@@ -55,20 +59,25 @@ typedef struct {
 
 /// Aligned spike windows of one interval, compact (caller-owned; 50 kB with
 /// the default capacities). Row i holds d_w valid samples: x - offset in ADC
-/// counts, saturated to int16.
+/// counts, saturated to int16; cut with a margin, it holds margin raw samples
+/// more on each side (d_w + 2 margin) until an alignment (spike_align.h)
+/// turns it into d_w samples from index 0 and sets margin to 0.
 typedef struct {
     int16_t wave[MD_MAX_SPIKES][MD_WAVE_LEN_MAX];
     uint32_t t[MD_MAX_SPIKES];  ///< sample index of each window's minimum
     size_t n;
     size_t d_w;
-    int32_t offset;           ///< DC offset removed, ADC counts
-    double gain;              ///< physical units per count (from the configuration)
-    uint32_t n_edge_skipped;  ///< events whose window would leave the interval
-    uint32_t n_duplicate;     ///< events realigned onto an already extracted minimum
-    uint32_t n_overflow;      ///< events the detector could not store
-    uint32_t n_lost;          ///< windows no longer in the delay line (0 unless the configuration is extreme)
-    uint32_t n_clipped;       ///< samples saturated to int16
-    uint32_t flags;           ///< SX_FLAG_*
+    size_t margin;             ///< raw samples on each side of the d_w of every row (0: aligned)
+    size_t pre_peak;           ///< samples before the minimum in the d_w of a row
+    int32_t offset;            ///< DC offset removed, ADC counts
+    double gain;               ///< physical units per count (from the configuration)
+    uint32_t n_edge_skipped;   ///< events whose window would leave the interval
+    uint32_t n_duplicate;      ///< events realigned onto an already extracted minimum
+    uint32_t n_overflow;       ///< events the detector could not store
+    uint32_t n_lost;           ///< windows no longer in the delay line (0 unless the configuration is extreme)
+    uint32_t n_clipped;        ///< samples saturated to int16
+    uint32_t n_align_clamped;  ///< windows whose alignment shift reached its bound (spike_align.h)
+    uint32_t flags;            ///< SX_FLAG_*
 } sx_windows_t;
 
 /// Spike-free noise windows of one interval, compact (caller-owned; 25 kB).
