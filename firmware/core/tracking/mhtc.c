@@ -45,6 +45,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->gnn_gate_chi2 = 9.21;
     cfg->share_jeffreys = MHTC_SHARE_JEFFREYS_DEFAULT;
     cfg->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
+    cfg->seed_from_others = true;
     cfg->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
     cfg->count_sigma = MHTC_COUNT_SIGMA_DEFAULT;
 }
@@ -251,6 +252,33 @@ static bool mhtc_oversplit(mhtc_state_t *st, const em_params_t *params)
     return split;
 }
 
+/* Seeds of a class without a warm start (§3.3.4). A split class (G > J) is seeded from the
+ * targets of the most probable other parent with exactly G tracks, when there is one: its
+ * tracks are a reading of this interval's data with G clusters, where the split of this
+ * parent's own targets (the widest group cut at its largest gap) carries nothing of the data's
+ * structure and EM creeps from it along the split's flat ridge. Either is only a starting
+ * point of the same MAP iteration under this parent's prior. ws->targets holds this
+ * parent's targets again on return. */
+static md_status_t mhtc_seed(mhtc_state_t *st, const em_data_t *data, size_t nt, mhtc_workspace_t *ws,
+                             const mhtc_model_t *m)
+{
+    cluster_workspace_t *c = &ws->cl;
+    const size_t parents = (st->n_hyp == 0u) ? 1u : st->n_hyp;
+    for (size_t r = 0u; st->cfg.seed_from_others && (m->g > nt) && (r < parents) && (r < MHTC_L_MAX); ++r) {
+        if ((r == m->parent) || (mhtc_parent(st, r)->n_tracks != m->g)) {
+            continue;
+        }
+        (void)mhtc_fill_targets(st, ws, r);
+        const md_status_t s = em_seed_from_targets(data, ws->targets, m->g, m->g, &c->seed_ws, c->seed);
+        (void)mhtc_fill_targets(st, ws, m->parent);
+        if (s == MD_OK) {
+            st->stats.models_seeded_other++;
+            return MD_OK;
+        }
+    }
+    return em_seed_from_targets(data, ws->targets, nt, m->g, &c->seed_ws, c->seed);
+}
+
 /* Steps 4-5 for one model class: MAP-EM under this parent's prior (ws->cl.prior); labels.
  * Returns true if the fit was dropped as one mode read as two clusters (counted apart from failures).
  * A class with more clusters than the parent has tracks starts from a warm donor's Θ̂ when
@@ -275,7 +303,7 @@ static bool mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, m
         st->stats.models_warm++;
     }
     if ((fs != MD_OK) && (fs != MD_E_NOCONVERGE)) {
-        if (em_seed_from_targets(data, ws->targets, nt, m->g, &c->seed_ws, c->seed) != MD_OK) {
+        if (mhtc_seed(st, data, nt, ws, m) != MD_OK) {
             return false;
         }
         fs = em_fit(data, &c->outlier, &c->prior, c->seed, m->g, &st->cfg.em, c->z, &m->fit);
@@ -284,9 +312,11 @@ static bool mhtc_fit_model(mhtc_state_t *st, const em_data_t *data, size_t nt, m
         return false;
     }
     if (mhtc_oversplit(st, &m->fit.params)) {
-        ws->one_mode[gi] = m->fit.params;
-        ws->one_mode_parent[gi] = m->parent;
-        ws->one_mode_ok[gi] = true;
+        if (m->g > nt) { /* only a split class starts warm from it: a class seeded by its own targets would evict it */
+            ws->one_mode[gi] = m->fit.params;
+            ws->one_mode_parent[gi] = m->parent;
+            ws->one_mode_ok[gi] = true;
+        }
         return true;
     }
     em_labels(c->z, data->n, m->g, m->labels);

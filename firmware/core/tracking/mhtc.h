@@ -134,6 +134,9 @@ typedef struct {
                                   ///< (nats), then converges under its own prior; else (or if that fit
                                   ///< fails) from the §3.3.4 seeds. 0 = off, HUGE_VAL = any parent with as
                                   ///< many tracks (MHTC_WARM_JEFFREYS_DEFAULT)
+    bool seed_from_others;        ///< a model class G > J fitted without a warm start is seeded from the
+                                  ///< targets of the most probable other parent with G tracks, when there
+                                  ///< is one (docs/mhtc.md); false = the §3.3.4 split of its own targets
 } mhtc_config_t;
 
 /// One track record (shared by every hypothesis that references it).
@@ -170,24 +173,25 @@ typedef struct {
 
 /// Counters: every failure or forced decision is counted, nothing is silent.
 typedef struct {
-    uint32_t steps;               ///< intervals processed
-    uint32_t update_errors;       ///< mhtc_update calls that returned an error
-    uint32_t models_pruned;       ///< model classes with P3 ≤ β (eq. 4.11)
-    uint32_t models_failed;       ///< EM/evidence failures of surviving model classes
-    uint32_t evidence_fallbacks;  ///< models whose Laplace evidence failed and used BIC/2
-    uint32_t empty_intervals;     ///< intervals where no model was usable (all tracks missed)
-    uint32_t dup_pruned;          ///< children dropped as duplicates (§4.4.1)
-    uint32_t target_overflow;     ///< children dropped: more than MHTC_TARGETS_MAX tracks
-    uint32_t pool_drops;          ///< hypotheses dropped because the track pool was full
-    uint32_t kf_failures;         ///< Kalman updates rejected (track kept with its prediction)
-    uint32_t tracks_deleted;      ///< records retired after K_miss misses
-    uint32_t murty_solves;        ///< LAP solves inside Murty (benchmark figure)
-    uint32_t models_shared;       ///< model hypotheses copied from a parent with the same track records (no EM)
-    uint32_t models_reused;       ///< model hypotheses reusing a similar parent's EM fit (share_jeffreys)
-    uint32_t models_oversplit;    ///< fits dropped: two clusters with one mode between them (unimodal_ratio)
-    uint32_t nscan_pruned;        ///< hypotheses dropped by N-scan pruning (another ancestor than the leader's)
-    uint32_t tracks_merged;       ///< missed tracks dropped from a hypothesis: one mode with a detected track of it
-    uint32_t models_warm;         ///< EM fits started from another parent's fit (warm_jeffreys)
+    uint32_t steps;                ///< intervals processed
+    uint32_t update_errors;        ///< mhtc_update calls that returned an error
+    uint32_t models_pruned;        ///< model classes with P3 ≤ β (eq. 4.11)
+    uint32_t models_failed;        ///< EM/evidence failures of surviving model classes
+    uint32_t evidence_fallbacks;   ///< models whose Laplace evidence failed and used BIC/2
+    uint32_t empty_intervals;      ///< intervals where no model was usable (all tracks missed)
+    uint32_t dup_pruned;           ///< children dropped as duplicates (§4.4.1)
+    uint32_t target_overflow;      ///< children dropped: more than MHTC_TARGETS_MAX tracks
+    uint32_t pool_drops;           ///< hypotheses dropped because the track pool was full
+    uint32_t kf_failures;          ///< Kalman updates rejected (track kept with its prediction)
+    uint32_t tracks_deleted;       ///< records retired after K_miss misses
+    uint32_t murty_solves;         ///< LAP solves inside Murty (benchmark figure)
+    uint32_t models_shared;        ///< model hypotheses copied from a parent with the same track records (no EM)
+    uint32_t models_reused;        ///< model hypotheses reusing a similar parent's EM fit (share_jeffreys)
+    uint32_t models_oversplit;     ///< fits dropped: two clusters with one mode between them (unimodal_ratio)
+    uint32_t nscan_pruned;         ///< hypotheses dropped by N-scan pruning (another ancestor than the leader's)
+    uint32_t tracks_merged;        ///< missed tracks dropped from a hypothesis: one mode with a detected track of it
+    uint32_t models_warm;          ///< EM fits started from another parent's fit (warm_jeffreys)
+    uint32_t models_seeded_other;  ///< split-class fits seeded from another parent's targets
 } mhtc_stats_t;
 
 /// Tracker state of one electrode (persistent between intervals).
