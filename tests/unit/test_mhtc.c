@@ -337,6 +337,17 @@ static void run_two_neurons(double share, uint64_t seed)
     }
 }
 
+/* The leading tracks and labels of this run equal ref's. */
+static void assert_same_leading(const mhtc_result_t *ref)
+{
+    TEST_ASSERT_EQUAL_size_t(ref->n_tracks, g_out.n_tracks);
+    for (size_t j = 0u; j < ref->n_tracks; ++j) {
+        TEST_ASSERT_EQUAL_UINT32(ref->track[j].id, g_out.track[j].id);
+    }
+    TEST_ASSERT_EQUAL_size_t(ref->g, g_out.g);
+    TEST_ASSERT_EQUAL_MEMORY(g_labels_ref, g_out.labels, sizeof g_labels_ref);
+}
+
 static void test_similar_priors_reuse_fits(void)
 {
     /* reuse between parents is what is tested: models are kept whatever their modes */
@@ -346,72 +357,49 @@ static void test_similar_priors_reuse_fits(void)
     memcpy(g_labels_ref, g_out.labels, sizeof g_labels_ref);
     run_two_neurons(MHTC_SHARE_JEFFREYS_DEFAULT, 10u);
     TEST_ASSERT_GREATER_THAN_UINT(0u, g_st.stats.models_reused);
-    TEST_ASSERT_EQUAL_size_t(ref.n_tracks, g_out.n_tracks);
-    for (size_t j = 0u; j < ref.n_tracks; ++j) {
-        TEST_ASSERT_EQUAL_UINT32(ref.track[j].id, g_out.track[j].id);
+    assert_same_leading(&ref);
+}
+
+/* Two neurons, one silent in the third interval; every parent fits (no reuse), with the
+ * warm start and the split seeds from other parents as given. */
+static void run_two_neurons_fitted(double warm_jeffreys, bool seed_from_others, uint64_t seed)
+{
+    start(MHTC_TRACKER_MHTC, seed);
+    g_st.cfg.share_jeffreys = 0.0;
+    g_st.cfg.warm_jeffreys = warm_jeffreys;
+    g_st.cfg.seed_from_others = seed_from_others;
+    for (int k = 0; k < 5; ++k) {
+        interval_with(true, k != 2, false);
     }
-    TEST_ASSERT_EQUAL_size_t(ref.g, g_out.g);
-    TEST_ASSERT_EQUAL_MEMORY(g_labels_ref, g_out.labels, sizeof g_labels_ref);
 }
 
 /* Warm start (docs/mhtc.md): later parents' fits start from an earlier parent's
  * fit of the same class. On the scripted run it must be used and leave the
  * leading tracks and labels as fitting every parent from its own seeds. */
-static void run_two_neurons_warm(bool warm, uint64_t seed)
-{
-    start(MHTC_TRACKER_MHTC, seed);
-    g_st.cfg.share_jeffreys = 0.0; /* every parent fits: the warm start is what differs */
-    g_st.cfg.warm_jeffreys = warm ? MHTC_WARM_JEFFREYS_DEFAULT : 0.0;
-    for (int k = 0; k < 5; ++k) {
-        interval_with(true, k != 2, false);
-    }
-}
-
 static void test_warm_start_same_leading_hypothesis(void)
 {
-    run_two_neurons_warm(false, 11u);
+    run_two_neurons_fitted(0.0, false, 11u);
     TEST_ASSERT_EQUAL_UINT32(0u, g_st.stats.models_warm);
     const mhtc_result_t ref = g_out;
     memcpy(g_labels_ref, g_out.labels, sizeof g_labels_ref);
-    run_two_neurons_warm(true, 11u);
+    run_two_neurons_fitted(MHTC_WARM_JEFFREYS_DEFAULT, false, 11u);
     TEST_ASSERT_GREATER_THAN_UINT(0u, g_st.stats.models_warm);
-    TEST_ASSERT_EQUAL_size_t(ref.n_tracks, g_out.n_tracks);
-    for (size_t j = 0u; j < ref.n_tracks; ++j) {
-        TEST_ASSERT_EQUAL_UINT32(ref.track[j].id, g_out.track[j].id);
-    }
-    TEST_ASSERT_EQUAL_size_t(ref.g, g_out.g);
-    TEST_ASSERT_EQUAL_MEMORY(g_labels_ref, g_out.labels, sizeof g_labels_ref);
+    assert_same_leading(&ref);
     TEST_ASSERT_DOUBLE_WITHIN(1e-3, ref.log_p4, g_out.log_p4);
 }
 
 /* Seeds of a split class from another parent's targets (docs/mhtc.md): used on the
- * scripted run, and the same leading tracks and labels as from the split of each
- * parent's own targets. */
-static void run_two_neurons_seeded(bool others, uint64_t seed)
-{
-    start(MHTC_TRACKER_MHTC, seed);
-    g_st.cfg.share_jeffreys = 0.0;
-    g_st.cfg.warm_jeffreys = 0.0; /* every split class seeds: the seeds are what differs */
-    g_st.cfg.seed_from_others = others;
-    for (int k = 0; k < 5; ++k) {
-        interval_with(true, k != 2, false);
-    }
-}
-
+ * scripted run (without warm starts, so that every split class seeds), and the same
+ * leading tracks and labels as from the split of each parent's own targets. */
 static void test_split_class_seeded_from_another_parent(void)
 {
-    run_two_neurons_seeded(false, 11u);
+    run_two_neurons_fitted(0.0, false, 11u);
     TEST_ASSERT_EQUAL_UINT32(0u, g_st.stats.models_seeded_other);
     const mhtc_result_t ref = g_out;
     memcpy(g_labels_ref, g_out.labels, sizeof g_labels_ref);
-    run_two_neurons_seeded(true, 11u);
+    run_two_neurons_fitted(0.0, true, 11u);
     TEST_ASSERT_GREATER_THAN_UINT(0u, g_st.stats.models_seeded_other);
-    TEST_ASSERT_EQUAL_size_t(ref.n_tracks, g_out.n_tracks);
-    for (size_t j = 0u; j < ref.n_tracks; ++j) {
-        TEST_ASSERT_EQUAL_UINT32(ref.track[j].id, g_out.track[j].id);
-    }
-    TEST_ASSERT_EQUAL_size_t(ref.g, g_out.g);
-    TEST_ASSERT_EQUAL_MEMORY(g_labels_ref, g_out.labels, sizeof g_labels_ref);
+    assert_same_leading(&ref);
 }
 
 /* Neuron 1 as a real one fires: amplitude jitter of 8 % and, in one spike of

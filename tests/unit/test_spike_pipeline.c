@@ -217,10 +217,9 @@ static void test_offline_wrapper_agrees(void)
 }
 
 /* A margin keeps that many raw samples on each side of every window: the
- * window without sub-sample alignment sits inside it unchanged, the events
- * and snippets are the same, and events too close to an edge for the margin
- * are counted as edge windows. Margins the rows cannot hold, a margin with
- * the extractor's own resampling, or one on the offline path are refused. */
+ * window without sub-sample alignment sits inside it unchanged, and the
+ * events and snippets are the same. Margins the rows cannot hold, a margin
+ * with the extractor's own resampling, or one on the offline path are refused. */
 static void test_margin_keeps_raw_samples_around_each_window(void)
 {
     size_t n_truth = 0u;
