@@ -614,11 +614,16 @@ static void mhtc_share_models(mhtc_state_t *st, mhtc_workspace_t *ws, size_t fir
 static void mhtc_expand_all(mhtc_state_t *st, const em_data_t *data, double volume, mhtc_workspace_t *ws,
                             size_t parents)
 {
-    uint8_t first[MHTC_L_MAX] = {0u}; /* model slots and counts: ≤ MHTC_MODELS_MAX ≤ 255 */
-    uint8_t count[MHTC_L_MAX] = {0u};
-    uint8_t pruned[MHTC_L_MAX] = {0u}; /* per parent ≤ MHTC_G_MAX */
-    uint8_t failed[MHTC_L_MAX] = {0u};
-    bool fitted[MHTC_L_MAX] = {false}; /* parents whose models came from their own EM fits */
+    uint8_t *first = ws->parent_first; /* model slots and counts: ≤ MHTC_MODELS_MAX ≤ 255 */
+    uint8_t *count = ws->parent_count;
+    uint8_t *pruned = ws->parent_pruned; /* per parent ≤ MHTC_G_MAX */
+    uint8_t *failed = ws->parent_failed;
+    bool *fitted = ws->parent_fitted; /* parents whose models came from their own EM fits */
+    memset(ws->parent_first, 0, sizeof ws->parent_first);
+    memset(ws->parent_count, 0, sizeof ws->parent_count);
+    memset(ws->parent_pruned, 0, sizeof ws->parent_pruned);
+    memset(ws->parent_failed, 0, sizeof ws->parent_failed);
+    memset(ws->parent_fitted, 0, sizeof ws->parent_fitted);
     for (size_t p = 0u; (p < parents) && (p < MHTC_L_MAX); ++p) {
         const size_t q = mhtc_same_prior(st, p);
         if (q < p) {

@@ -285,6 +285,11 @@ typedef struct {
     uint8_t key_g[MHTC_TARGETS_MAX + MHTC_G_MAX];
     double pair_mean[2][EM_D_MAX];            ///< two records seen through B^k (one-mode test of a track pair):
     double pair_cov[2][EM_D_MAX * EM_D_MAX];  ///< here, not on the stack of step 9's deepest path
+    uint8_t parent_first[MHTC_L_MAX];         ///< per parent of the interval: its first model slot,
+    uint8_t parent_count[MHTC_L_MAX];         ///< its model count,
+    uint8_t parent_pruned[MHTC_L_MAX];        ///< its classes pruned by eq. 4.11 and
+    uint8_t parent_failed[MHTC_L_MAX];        ///< failed (steps 3-6; here, not on mhtc_update's frame, which
+    bool parent_fitted[MHTC_L_MAX];           ///< lies on the firmware's deepest path), whether its own fits
 } mhtc_workspace_t;
 
 /// Per-track report of the leading hypothesis.
