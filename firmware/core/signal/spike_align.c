@@ -8,9 +8,7 @@
 
 _Static_assert(SA_MARGIN >= 2u, "Keys' kernel reads two samples past a shift just below one sample");
 
-/* Offset δ ∈ [−½, ½] of the vertex of the parabola through x[i−1], x[i], x[i+1]
- * (0 if x[i] is not a strict local minimum of the three). */
-static double sa_trough_offset(const int16_t *x, size_t i)
+double sa_trough_offset(const int16_t *x, size_t i)
 {
     const double a = (double)x[i - 1u];
     const double b = (double)x[i];
@@ -23,10 +21,7 @@ static double sa_trough_offset(const int16_t *x, size_t i)
     return (d < -0.5) ? -0.5 : ((d > 0.5) ? 0.5 : d);
 }
 
-/* out[j] = the raw row (SA_MARGIN samples before the window) at j + δ, by
- * Keys' cubic convolution (a = −½: four samples, exact for quadratics);
- * δ ∈ [−1, SA_SHIFT_MAX]. */
-static void sa_resample(const int16_t *raw, size_t d_w, double delta, double *out)
+void sa_resample(const int16_t *raw, size_t d_w, double delta, double *out)
 {
     const size_t base = (delta < 0.0) ? (SA_MARGIN - 1u) : SA_MARGIN;
     const double f = (delta < 0.0) ? (1.0 + delta) : delta;

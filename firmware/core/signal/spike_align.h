@@ -53,6 +53,15 @@ typedef struct {
     double row[MD_WAVE_LEN_MAX];    ///< one resampled window
 } sa_work_t;
 
+/// Offset δ ∈ [−½, ½] of the vertex of the parabola through x[i−1], x[i],
+/// x[i+1] (0 unless x[i] is a strict local minimum of the three). O(1).
+double sa_trough_offset(const int16_t *x, size_t i);
+
+/// out[j] = the raw row at SA_MARGIN + j + δ, j < d_w, by Keys' cubic
+/// convolution (a = −½: four samples, exact for quadratics); raw holds
+/// d_w + 2·SA_MARGIN samples and δ ∈ [−1, SA_SHIFT_MAX]. O(d_w).
+void sa_resample(const int16_t *raw, size_t d_w, double delta, double *out);
+
 /// Aligns the windows of `w`, cut with w->margin == SA_MARGIN raw samples on
 /// each side of d_w (trough at index SA_MARGIN + w->pre_peak of each row), in
 /// place: afterwards row i holds its d_w aligned samples from index 0 and

@@ -5,6 +5,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "signal/spike_align.h"
+
 #define SX_RES_SEED_MIX 0x9E3779B97F4A7C15ull /* decorrelates the reservoir stream from the gap stream */
 
 typedef enum { SX_CUT_OK = 0, SX_CUT_EDGE = 1, SX_CUT_LOST = 2 } sx_cut_t;
@@ -63,52 +65,28 @@ static uint32_t sx_copy16(const sd_view_t *v, uint32_t start, size_t d_w, int32_
     return clipped;
 }
 
-static double sx_at(const sd_view_t *v, uint32_t i)
-{
-    return (double)v->x[i & v->mask];
-}
+_Static_assert(SX_INTERP_MARGIN == SA_MARGIN, "the resampling reads the alignment's margin");
 
-/* Offset δ ∈ [−½, ½] of the vertex of the parabola through x[t−1], x[t], x[t+1]
- * (0 if t is not a strict local minimum of the three). */
-static double sx_trough_offset(const sd_view_t *v, uint32_t t)
+/* The window resampled on the sub-sample minimum (spike_align.h: the parabola's vertex,
+ * Keys' cubic convolution), offset removed, into row16 (rounded, saturated) or rowd
+ * (times gain); returns the saturated samples. */
+static uint32_t sx_resample(const sd_view_t *v, uint32_t start, const sx_config_t *c, int32_t offset, int16_t *row16,
+                            double *rowd)
 {
-    const double a = sx_at(v, t - 1u);
-    const double b = sx_at(v, t);
-    const double c = sx_at(v, t + 1u);
-    const double curv = a - 2.0 * b + c;
-    if (!(curv > 0.0)) {
-        return 0.0;
-    }
-    const double d = 0.5 * (a - c) / curv;
-    return (d < -0.5) ? -0.5 : ((d > 0.5) ? 0.5 : d);
-}
-
-/* The window resampled at start + j + δ by Keys' cubic convolution (a = −½),
- * offset removed, into row16 (rounded, saturated) or rowd (times gain). */
-static uint32_t sx_resample(const sd_view_t *v, uint32_t start, double delta, const sx_config_t *c, int32_t offset,
-                            int16_t *row16, double *rowd)
-{
-    const uint32_t base = (delta < 0.0) ? (start - 1u) : start;
-    const double f = (delta < 0.0) ? (1.0 + delta) : delta;
+    int16_t raw[MD_WAVE_LEN_MAX + 2u * SA_MARGIN];
+    double y[MD_WAVE_LEN_MAX];
+    /* raw samples, offset removed: saturation here is counted on the output */
+    (void)sx_copy16(v, start - SA_MARGIN, c->d_w + 2u * SA_MARGIN, offset, raw);
+    sa_resample(raw, c->d_w, sa_trough_offset(raw, SA_MARGIN + c->pre_peak), y);
     uint32_t clipped = 0u;
     for (size_t j = 0u; j < c->d_w; ++j) {
-        const uint32_t i = base + (uint32_t)j;
-        const double p0 = sx_at(v, i - 1u);
-        const double p1 = sx_at(v, i);
-        const double p2 = sx_at(v, i + 1u);
-        const double p3 = sx_at(v, i + 2u);
-        const double y = p1 + 0.5 * f *
-                                  ((p2 - p0) +
-                                   f * ((2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) + f * (3.0 * (p1 - p2) + p3 - p0)));
-        const double r = nearbyint(y - (double)offset); /* whole counts on both paths: they agree exactly */
+        const double r = nearbyint(y[j]); /* whole counts on both paths: they agree exactly */
         if (rowd != NULL) {
             rowd[j] = c->gain * (r + 0.0); /* + 0.0: no negative zero, as the int16 path */
         } else {
             const bool out = (r < (double)INT16_MIN) || (r > (double)INT16_MAX);
             clipped += out ? 1u : 0u;
-            const double sat = (r < (double)INT16_MIN) ? (double)INT16_MIN
-                                                       : ((r > (double)INT16_MAX) ? (double)INT16_MAX : r);
-            row16[j] = (int16_t)sat;
+            row16[j] = (int16_t)((r < (double)INT16_MIN) ? INT16_MIN : ((r > (double)INT16_MAX) ? INT16_MAX : r));
         }
     }
     return clipped;
@@ -135,7 +113,7 @@ static sx_cut_t sx_cut(const sd_view_t *v, uint32_t t, const sx_config_t *c, int
         return SX_CUT_LOST;
     }
     if (c->subsample) {
-        *clipped += sx_resample(v, start, sx_trough_offset(v, t), c, offset, row16, rowd);
+        *clipped += sx_resample(v, start, c, offset, row16, rowd);
         return SX_CUT_OK;
     }
     if (rowd != NULL) {
