@@ -23,7 +23,7 @@ double sa_trough_offset(const int16_t *x, size_t i)
 
 void sa_resample(const int16_t *raw, size_t d_w, double delta, double *out)
 {
-    const size_t base = (delta < 0.0) ? (SA_MARGIN - 1u) : SA_MARGIN;
+    const size_t base = (delta < 0.0) ? ((size_t)SA_MARGIN - 1u) : (size_t)SA_MARGIN;
     const double f = (delta < 0.0) ? (1.0 + delta) : delta;
     for (size_t j = 0u; j < d_w; ++j) {
         const size_t i = base + j;
@@ -81,22 +81,31 @@ static double sa_shift(const sa_work_t *k, size_t d_w, double delta0, double tt,
     return (d < -1.0) ? -1.0 : ((d > SA_SHIFT_MAX) ? SA_SHIFT_MAX : d);
 }
 
+uint32_t sa_round_i16(const double *y, size_t n, int16_t *out)
+{
+    uint32_t clipped = 0u;
+    for (size_t j = 0u; j < n; ++j) {
+        const double r = nearbyint(y[j]);
+        const bool over = (r < (double)INT16_MIN) || (r > (double)INT16_MAX);
+        clipped += over ? 1u : 0u;
+        const double sat = (r < (double)INT16_MIN) ? (double)INT16_MIN
+                                                   : ((r > (double)INT16_MAX) ? (double)INT16_MAX : r);
+        out[j] = (int16_t)sat;
+    }
+    return clipped;
+}
+
 /* Row i := its d_w samples at shift δ, whole counts, saturated. */
 static void sa_store(sx_windows_t *w, size_t i, double delta, sa_work_t *k)
 {
     sa_resample(w->wave[i], w->d_w, delta, k->row); /* every read before the first write */
-    for (size_t j = 0u; j < w->d_w; ++j) {
-        const double r = nearbyint(k->row[j]);
-        const bool out = (r < (double)INT16_MIN) || (r > (double)INT16_MAX);
-        w->n_clipped += out ? 1u : 0u;
-        w->wave[i][j] = (int16_t)((r < (double)INT16_MIN) ? INT16_MIN : ((r > (double)INT16_MAX) ? INT16_MAX : r));
-    }
+    w->n_clipped += sa_round_i16(k->row, w->d_w, w->wave[i]);
 }
 
 md_status_t sa_align_windows(sx_windows_t *w, sa_work_t *work)
 {
     if ((w == NULL) || (work == NULL) || (w->margin != SA_MARGIN) || (w->d_w < 3u) || (w->pre_peak < 1u) ||
-        (w->pre_peak + 1u >= w->d_w) || (w->d_w + 2u * SA_MARGIN > MD_WAVE_LEN_MAX) || (w->n > MD_MAX_SPIKES)) {
+        (w->pre_peak + 1u >= w->d_w) || (w->d_w + 2u * (size_t)SA_MARGIN > MD_WAVE_LEN_MAX) || (w->n > MD_MAX_SPIKES)) {
         return MD_E_ARG;
     }
     double tt = 0.0;

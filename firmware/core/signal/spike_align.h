@@ -62,6 +62,10 @@ double sa_trough_offset(const int16_t *x, size_t i);
 /// d_w + 2·SA_MARGIN samples and δ ∈ [−1, SA_SHIFT_MAX]. O(d_w).
 void sa_resample(const int16_t *raw, size_t d_w, double delta, double *out);
 
+/// out[j] = y[j] rounded to whole counts and saturated to int16, j < n;
+/// returns the number of saturated values. O(n).
+uint32_t sa_round_i16(const double *y, size_t n, int16_t *out);
+
 /// Aligns the windows of `w`, cut with w->margin == SA_MARGIN raw samples on
 /// each side of d_w (trough at index SA_MARGIN + w->pre_peak of each row), in
 /// place: afterwards row i holds its d_w aligned samples from index 0 and

@@ -36,7 +36,7 @@ static int sx_config_valid(const sx_config_t *c)
            (!c->subsample || (c->pre_peak >= 1u)) && (c->gain > 0.0) && isfinite(c->gain) &&
            (c->n_noise <= MD_MAX_NOISE_SNIPPETS) && (c->guard <= 100000u) && (c->spacing <= SD_MAX_INTERVAL_SAMPLES) &&
            (c->margin <= SX_MARGIN_MAX) && ((c->margin == 0u) || !c->subsample) &&
-           (c->d_w + 2u * c->margin <= MD_WAVE_LEN_MAX);
+           (c->d_w + 2u * (size_t)c->margin <= MD_WAVE_LEN_MAX);
 }
 
 /* ---- window cutter (shared) --------------------------------------------- */
@@ -76,20 +76,15 @@ static uint32_t sx_resample(const sd_view_t *v, uint32_t start, const sx_config_
     int16_t raw[MD_WAVE_LEN_MAX + 2u * SA_MARGIN];
     double y[MD_WAVE_LEN_MAX];
     /* raw samples, offset removed: saturation here is counted on the output */
-    (void)sx_copy16(v, start - SA_MARGIN, c->d_w + 2u * SA_MARGIN, offset, raw);
+    (void)sx_copy16(v, start - SA_MARGIN, c->d_w + 2u * (size_t)SA_MARGIN, offset, raw);
     sa_resample(raw, c->d_w, sa_trough_offset(raw, SA_MARGIN + c->pre_peak), y);
-    uint32_t clipped = 0u;
-    for (size_t j = 0u; j < c->d_w; ++j) {
-        const double r = nearbyint(y[j]); /* whole counts on both paths: they agree exactly */
-        if (rowd != NULL) {
-            rowd[j] = c->gain * (r + 0.0); /* + 0.0: no negative zero, as the int16 path */
-        } else {
-            const bool out = (r < (double)INT16_MIN) || (r > (double)INT16_MAX);
-            clipped += out ? 1u : 0u;
-            row16[j] = (int16_t)((r < (double)INT16_MIN) ? INT16_MIN : ((r > (double)INT16_MAX) ? INT16_MAX : r));
-        }
+    if (rowd == NULL) {
+        return sa_round_i16(y, c->d_w, row16);
     }
-    return clipped;
+    for (size_t j = 0u; j < c->d_w; ++j) {
+        rowd[j] = c->gain * (nearbyint(y[j]) + 0.0); /* whole counts as the int16 path; + 0.0: no negative zero */
+    }
+    return 0u;
 }
 
 /* Realigns t to the first minimum within +-realign (thesis: align by the
@@ -122,7 +117,7 @@ static sx_cut_t sx_cut(const sd_view_t *v, uint32_t t, const sx_config_t *c, int
             rowd[j] = c->gain * (double)d;
         }
     } else {
-        *clipped += sx_copy16(v, start - m, c->d_w + 2u * m, offset, row16); /* raw, with the margin */
+        *clipped += sx_copy16(v, start - m, c->d_w + 2u * (size_t)m, offset, row16); /* raw, with the margin */
     }
     return SX_CUT_OK;
 }
