@@ -11,10 +11,11 @@
 /// Locating the trough by the parabola through the three samples around it
 /// (the extractor's single-window method) removes part of that spread, but
 /// its estimate rests on the two neighbours of the minimum and their noise.
-/// Measured on `single_neuron` seed 3, 70 intervals of the neuron at a
-/// standstill: the window covariance's excess over the noise along the
-/// derivative direction was 5.1 × the noise with the parabola, 1.34 × with
-/// the template step below (and 7.2 × without any sub-sample alignment).
+/// Measured on `single_neuron` seed 3, the neuron at a standstill
+/// (tools/alignment/alignment_spread.py, docs/detector.md): the window
+/// covariance whitened by the noise's keeps its amplitude direction (7.7)
+/// with either method, and its second direction, along the slope, falls
+/// from 5.53 with the parabola to 1.30 with the template step below.
 ///
 /// Method, per interval (windows cut raw, with SA_MARGIN samples on each
 /// side, by the extractor's `margin`):
@@ -27,8 +28,9 @@
 ///     unit of the same shape aligns alike): δ = δ0 + ⟨aT − w, T'⟩ /
 ///     (a ⟨T', T'⟩), clamped to [−1, 1), and the window resampled at δ.
 /// The step uses every sample of the window, so its estimate is far less
-/// noisy than the parabola's; one step is enough from δ0 (a second changed
-/// nothing measurable). With several units the template is their mixture:
+/// noisy than the parabola's; one step is enough from δ0 (in the tool's
+/// numpy copy a second step left the spread as it was). With several units
+/// the template is their mixture:
 /// each unit is then aligned consistently against it, which is what the
 /// features need. A window whose scale a is not positive keeps δ0.
 ///
