@@ -38,6 +38,8 @@ static void sfsm_cfg_from(const md_params_t *p, sfsm_config_t *cfg)
     cfg->wait_r = (uint8_t)md_params_get_u32(p, MD_P_SFSM_WAIT_R);
     cfg->lost_cycles = (uint8_t)md_params_get_u32(p, MD_P_SFSM_LOST_CYCLES);
     cfg->search_span_um = md_params_get(p, MD_P_SFSM_SEARCH_SPAN_UM);
+    cfg->approach_um = fmin(md_params_get(p, MD_P_SFSM_APPROACH_UM), cfg->move_max_um);
+    cfg->approach_gain = md_params_get(p, MD_P_SFSM_APPROACH_GAIN);
 }
 
 static void sc_cfg_from(const md_params_t *p, sc_config_t *cfg)
@@ -79,6 +81,10 @@ static void guard_cfg_from(const md_params_t *p, ag_config_t *cfg)
     cfg->creep_horizon_s = md_params_get(p, MD_P_GUARD_CREEP_HORIZON_S);
     cfg->baseline_min_um = md_params_get(p, MD_P_GUARD_BASELINE_UM);
     cfg->baseline_new_um = fmin(md_params_get(p, MD_P_GUARD_BASELINE_NEW_UM), cfg->baseline_min_um);
+    cfg->pace_um = md_params_get(p, MD_P_GUARD_PACE_UM);
+    cfg->settle_um = md_params_get(p, MD_P_GUARD_SETTLE_UM);
+    cfg->follow = md_params_get_u32(p, MD_P_GUARD_FOLLOW) != 0u;
+    cfg->near_scale = md_params_get_u32(p, MD_P_GUARD_NEAR_SCALE) != 0u;
 }
 
 static void mhtc_cfg_from(const md_params_t *p, mhtc_config_t *cfg)
@@ -427,6 +433,7 @@ static double decide(md_electrode_t *el, const md_node_t *node, const md_interva
     in.estop = node->estop_latched;
     in.fault = !md_node_motion_allowed(node);
     in.resume = el->resume;
+    in.settled = ag_settled(&el->guard);
     if (po->has_dominant) {
         sc_curve_t *curve = NULL;
         if (sc_table_observe(&el->curves, &scc, po->dominant, depth, po->snr, &curve) == MD_OK && curve != NULL) {
@@ -467,7 +474,8 @@ static double guard(md_electrode_t *el, const md_node_t *node, const md_workspac
                     double depth, double step)
 {
     ag_unit_t unit[AG_UNITS_MAX];
-    const ag_input_t in = {unit, guard_units(ws, po, unit), depth, (double)el->rec_start_us * 1e-6, step};
+    const ag_input_t in = {unit, guard_units(ws, po, unit),        depth, (double)el->rec_start_us * 1e-6,
+                           step, sfsm_holds_lone_neuron(&el->sfsm)};
     ag_output_t out;
     if (ag_apply(&el->guard, &in, &out) != MD_OK) {
         el->flags |= MD_TLM_F_GUARD_LIMITED;

@@ -79,6 +79,11 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
     [MD_P_SFSM_SNR_ISOLATE] = {0x2039u, "sfsm_snr_isolate", "", 1.0, 1000.0, 24.0, MD_PARAM_F_MOTION,
                                "SFSM: a dominant track this loud declares isolation at once, whatever its IQM "
                                "(Omega3 by loudness)"},
+    [MD_P_SFSM_APPROACH_UM] = {0x203Au, "sfsm_approach_um", "um", 0.0, 50.0, 0.0, MD_PARAM_F_MOTION,
+                               "SFSM: once the tissue has settled, Neuron Isolated steps this far towards the "
+                               "neuron while its SNR rises (0: hold; <= move_max_um)"},
+    [MD_P_SFSM_APPROACH_GAIN] = {0x203Bu, "sfsm_approach_gain", "", 0.0, 1.0, 0.03, MD_PARAM_F_MOTION,
+                                 "SFSM: relative SNR rise over one settled-approach step that earns the next"},
     [MD_P_MHTC_Q_UV] = {0x2040u, "mhtc_q_uv", "uV", 0.01, 1000.0, 10.0, MD_PARAM_F_CONFIG,
                         "MHTC process noise std per waveform sample and interval"},
     [MD_P_TRACKER] = {0x2041u, "tracker", "", 0.0, 3.0, 0.0, MD_PARAM_F_CONFIG | MD_PARAM_F_INTEGER,
@@ -134,6 +139,18 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
     [MD_P_GUARD_BASELINE_NEW_UM] = {0x2061u, "guard_baseline_new_um", "um", 1.0, 100.0, 8.0, MD_PARAM_F_MOTION,
                                     "approach guard: shortest advance over which the growth of a unit first seen "
                                     "less than guard_baseline_um back is measured (<= guard_baseline_um)"},
+    [MD_P_GUARD_PACE_UM] = {0x2062u, "guard_pace_um", "um", 0.0, 1000.0, 0.0, MD_PARAM_F_MOTION,
+                            "approach guard: most tissue give-back an advance in active tissue may leave to come "
+                            "(0: no limit)"},
+    [MD_P_GUARD_SETTLE_UM] = {0x2063u, "guard_settle_um", "um", 0.0, 100.0, 2.0, MD_PARAM_F_MOTION,
+                              "approach guard: tissue give-back still to come at or below which the tissue "
+                              "counts as settled (the SFSM's settled approach waits for it)"},
+    [MD_P_GUARD_FOLLOW] = {0x2064u, "guard_follow", "", 0.0, 1.0, 0.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
+                           "approach guard: a tip the SFSM lets stand in loud tissue retracts by the tissue's "
+                           "give-back as it comes (1) or stands (0)"},
+    [MD_P_GUARD_NEAR_SCALE] = {0x2065u, "guard_near_scale", "", 0.0, 1.0, 0.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
+                               "approach guard: advances towards a loud unit are at most guard_move_near_um times "
+                               "guard_amp_slow over its amplitude (1) or guard_move_near_um (0)"},
     [MD_P_NODE_STATE] = {0x3000u, "node_state", "", 0.0, 255.0, 0.0, RO_LIVE, "NMT state (HEARTBEAT NodeState)"},
     [MD_P_ESTOP_LATCHED] = {0x3001u, "estop_latched", "", 0.0, 1.0, 0.0, RO_LIVE, "1 while the e-stop is latched"},
     [MD_P_UPTIME_S] = {0x3002u, "uptime_s", "s", 0.0, U32_MAX_D, 0.0, RO_LIVE, "seconds since power-on"},

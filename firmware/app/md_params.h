@@ -64,6 +64,8 @@ typedef enum {
     MD_P_SFSM_SNR_MIN,           ///< SFSM noise floor: tracks below this SNR are never dominant
     MD_P_SFSM_SEARCH_SPAN_UM,    ///< SFSM search leash around the last dominant track
     MD_P_SFSM_SNR_ISOLATE,       ///< SFSM: dominant SNR that declares isolation at once, whatever the IQM
+    MD_P_SFSM_APPROACH_UM,       ///< SFSM: settled approach step in Neuron Isolated (0: hold)
+    MD_P_SFSM_APPROACH_GAIN,     ///< SFSM: SNR rise over one approach step that earns the next
     MD_P_MHTC_Q_UV,              ///< MHTC process noise std per waveform sample and interval
     MD_P_TRACKER,                ///< tracker: 0 MHTC, 1 MAP-NN, 2 ML-NN, 3 GNN (mhtc_tracker_t)
     MD_P_MHTC_UNIMODAL_RATIO,    ///< clustering: a model with two clusters forming one mode is dropped
@@ -86,6 +88,10 @@ typedef enum {
     MD_P_GUARD_CEILING_CLIMB,    ///< approach guard: climb over a unit's ceiling that retracts
     MD_P_GUARD_BASELINE_UM,      ///< approach guard: shortest advance over which growth is measured
     MD_P_GUARD_BASELINE_NEW_UM,  ///< approach guard: the same for a unit first seen less far back
+    MD_P_GUARD_PACE_UM,          ///< approach guard: most give-back an advance in active tissue may leave
+    MD_P_GUARD_SETTLE_UM,        ///< approach guard: give-back to come at which the tissue counts as settled
+    MD_P_GUARD_FOLLOW,           ///< approach guard: a standing tip follows the tissue's give-back
+    MD_P_GUARD_NEAR_SCALE,       ///< approach guard: near a loud unit, steps shrink as it gets louder
     /* diagnostics (0x3xxx), read-only */
     MD_P_NODE_STATE,
     MD_P_ESTOP_LATCHED,

@@ -43,7 +43,7 @@ static double next_time(void)
 static ag_output_t step1(double amp, double depth, double want)
 {
     const ag_unit_t u = {AG_UNIT_RAW, amp};
-    const ag_input_t in = {&u, 1u, depth, next_time(), want};
+    const ag_input_t in = {&u, 1u, depth, next_time(), want, false};
     ag_output_t out;
     TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
     return out;
@@ -117,7 +117,7 @@ static void test_advances_are_shortened_while_a_loud_unit_may_be_ahead(void)
 static ag_output_t step2(double raw, uint32_t id, double amp, double depth, double want)
 {
     const ag_unit_t u[2] = {{AG_UNIT_RAW, raw}, {id, amp}};
-    const ag_input_t in = {u, (amp > 0.0) ? 2u : 1u, depth, next_time(), want};
+    const ag_input_t in = {u, (amp > 0.0) ? 2u : 1u, depth, next_time(), want, false};
     ag_output_t out;
     TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
     return out;
@@ -190,7 +190,7 @@ static void test_a_unit_climbing_at_a_standstill_makes_the_electrode_give_way(vo
     int retractions = 0;
     for (int k = 0; k < 30; ++k) {
         const ag_unit_t u[2] = {{AG_UNIT_RAW, 40.0}, {7u, 16.0 * pow(1.05, k)}};
-        const ag_input_t in = {u, 2u, z, next_time(), 0.0};
+        const ag_input_t in = {u, 2u, z, next_time(), 0.0, false};
         ag_output_t out;
         TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
         if (out.action == AG_RETRACT) {
@@ -387,7 +387,7 @@ static void test_the_fence_holds_when_a_ceiling_lapses(void)
     double z = 0.0;
     for (int k = 0; k < 40 && g.n_ceil == 0u; ++k) {
         const ag_unit_t u[2] = {{AG_UNIT_RAW, 13.0}, {7u, law(80.0, 0.0, 200.0 - z)}};
-        const ag_input_t in = {u, 2u, z, next_time(), 20.0};
+        const ag_input_t in = {u, 2u, z, next_time(), 20.0, false};
         ag_output_t out;
         TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
         z += out.move_um;
@@ -449,7 +449,7 @@ static void test_an_artefact_burst_does_not_freeze_the_search(void)
     double z = 0.0;
     for (int k = 0; k < 3; ++k) {
         const ag_unit_t u[2] = {{AG_UNIT_RAW, 9.0}, {3u, 20.0 * pow(3.0, k)}};
-        const ag_input_t in = {u, 2u, z, next_time(), 20.0};
+        const ag_input_t in = {u, 2u, z, next_time(), 20.0, false};
         ag_output_t out;
         TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
         z += out.move_um;
@@ -475,26 +475,148 @@ static void test_amp_stop_is_a_ceiling_for_every_unit(void)
     TEST_ASSERT_TRUE(out.move_um > 0.0 && out.move_um <= log(1.0 / 0.9) / cfg.growth_stop + 1e-9);
 }
 
+/* Rule 8: in active tissue no advance leaves more than pace_um of give-back
+ * to come, and the search still moves on as it comes back; in quiet tissue,
+ * with pace 0, and for retractions nothing changes. */
+static void test_the_pace_bounds_the_give_back_still_to_come(void)
+{
+    cfg.pace_um = 10.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_init(&g, &cfg));
+    double z = 0.0;
+    for (int k = 0; k < 30; ++k) {
+        const ag_output_t out = step1(cfg.amp_floor + 1.0, z, 20.0);
+        TEST_ASSERT_TRUE(out.move_um >= 0.0);
+        TEST_ASSERT_TRUE(g.pending_um + cfg.relax_frac * out.move_um <= cfg.pace_um + 1e-9);
+        TEST_ASSERT_TRUE(!(out.move_um > 0.0) || out.move_um >= cfg.still_um); /* no creeping steps */
+        z += out.move_um;
+    }
+    /* 10 µm of give-back leaves 0.8 µm per 10 s interval: ~3.3 µm of advance */
+    TEST_ASSERT_TRUE(z > 60.0 && z < 150.0);
+    const ag_output_t back = step1(cfg.amp_floor + 1.0, z, -20.0);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, -20.0, back.move_um);
+    setUp(); /* quiet tissue: below amp_floor nothing is heard that could be masked */
+    cfg.pace_um = 10.0;
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_init(&g, &cfg));
+    for (int k = 0; k < 5; ++k) {
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 20.0, step1(cfg.amp_floor - 1.0, 20.0 * k, 20.0).move_um);
+    }
+    setUp(); /* pace 0: off */
+    for (int k = 0; k < 5; ++k) {
+        TEST_ASSERT_DOUBLE_WITHIN(1e-9, 20.0, step1(cfg.amp_floor + 1.0, 20.0 * k, 20.0).move_um);
+    }
+}
+
+/* The tissue counts as settled once its give-back still to come is at most
+ * settle_um: not after a descent, again after standing a few time constants. */
+static void test_the_tissue_settles_after_the_give_back(void)
+{
+    TEST_ASSERT_TRUE(ag_settled(&g));
+    for (int k = 0; k < 5; ++k) {
+        (void)step1(cfg.amp_floor - 1.0, 20.0 * k, 20.0);
+    }
+    TEST_ASSERT_FALSE(ag_settled(&g));
+    const double due = g.pending_um;
+    int waited = 0;
+    while (!ag_settled(&g) && waited < 200) {
+        (void)step1(cfg.amp_floor - 1.0, 80.0, 0.0);
+        waited++;
+    }
+    TEST_ASSERT_TRUE(ag_settled(&g));
+    /* due × e^(-10 n / 120) <= settle_um */
+    TEST_ASSERT_INT_WITHIN(1, (int)ceil(120.0 / 10.0 * log(due / cfg.settle_um)), waited);
+    TEST_ASSERT_FALSE(ag_settled(NULL));
+}
+
+/* One interval with the robust amplitude only, the SFSM holding a lone
+ * neuron or not. */
+static ag_output_t step_lone(double amp, double depth, double want, bool lone)
+{
+    const ag_unit_t u = {AG_UNIT_RAW, amp};
+    const ag_input_t in = {&u, 1u, depth, next_time(), want, lone};
+    ag_output_t out;
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &in, &out));
+    return out;
+}
+
+/* Rule 9: after a descent past a loud unit the standing tip retracts by the
+ * give-back as it comes, in steps of at least still_um, and reaches where the model puts it
+ * even when the servo stops short of each retraction; a tip beside a lone
+ * neuron stands. */
+static void follow_after_a_descent(double executed_share, bool lone, double *retracted, double *came)
+{
+    cfg.follow = true;
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_init(&g, &cfg));
+    double z = 0.0;
+    for (int k = 0; k < 8; ++k) { /* a loud unit that does not grow: no ceiling */
+        z += step_lone(cfg.amp_slow + 1.0, z, 20.0, lone).move_um;
+    }
+    TEST_ASSERT_TRUE(z > 100.0);
+    TEST_ASSERT_EQUAL_UINT8(0u, g.n_ceil);
+    const double stop = z;
+    (void)step_lone(cfg.amp_slow + 1.0, z, 0.0, lone); /* the tip stands from here */
+    const double due = g.pending_um;
+    for (int k = 0; k < 40; ++k) {
+        const ag_output_t out = step_lone(cfg.amp_slow + 1.0, z, 0.0, lone);
+        TEST_ASSERT_TRUE(out.move_um <= 0.0);
+        TEST_ASSERT_TRUE(!(out.move_um < 0.0) || out.move_um <= -cfg.still_um + 1e-9);
+        z += executed_share * out.move_um;
+    }
+    *retracted = stop - z;
+    *came = due - g.pending_um;
+}
+
+static void test_a_standing_tip_follows_the_give_back(void)
+{
+    double retracted = 0.0;
+    double came = 0.0;
+    follow_after_a_descent(1.0, false, &retracted, &came);
+    TEST_ASSERT_TRUE(came > 10.0);
+    TEST_ASSERT_DOUBLE_WITHIN(cfg.still_um, came, retracted);
+    TEST_ASSERT_TRUE(retracted <= came + 1e-9);
+    TEST_ASSERT_TRUE(g.follows >= 3u);
+    setUp(); /* the servo stops short of every retraction: the target is followed, not the steps */
+    follow_after_a_descent(0.6, false, &retracted, &came);
+    TEST_ASSERT_DOUBLE_WITHIN(cfg.still_um, came, retracted);
+    setUp(); /* a lone neuron: the tip stands */
+    follow_after_a_descent(1.0, true, &retracted, &came);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, retracted);
+    TEST_ASSERT_EQUAL_UINT32(0u, g.follows);
+}
+
+/* Rule 5 with near_scale: the louder the unit that may be ahead, the shorter
+ * the advance: move_near_um × amp_slow / amplitude. */
+static void test_advances_shorten_as_the_unit_gets_louder(void)
+{
+    cfg.near_scale = true;
+    TEST_ASSERT_EQUAL_INT(MD_OK, ag_init(&g, &cfg));
+    ag_output_t out = step1(2.0 * cfg.amp_slow, 0.0, 30.0); /* growth not known yet */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.5 * cfg.move_near_um, out.move_um);
+    TEST_ASSERT_EQUAL_INT(AG_SLOWED, out.action);
+    setUp();
+    out = step1(2.0 * cfg.amp_slow, 0.0, 30.0); /* off: move_near_um */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, cfg.move_near_um, out.move_um);
+}
+
 static void test_invalid_input_holds_and_is_counted(void)
 {
     const ag_unit_t bad[2] = {{AG_UNIT_RAW, NAN}, {1u, -1.0}};
     ag_output_t out;
     for (size_t i = 0u; i < 2u; ++i) {
-        const ag_input_t in = {&bad[i], 1u, 0.0, next_time(), 20.0};
+        const ag_input_t in = {&bad[i], 1u, 0.0, next_time(), 20.0, false};
         TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &in, &out));
         TEST_ASSERT_DOUBLE_WITHIN(1e-9, 0.0, out.move_um);
         TEST_ASSERT_EQUAL_INT(AG_BAD_INPUT, out.action);
     }
     const ag_unit_t ok = {AG_UNIT_RAW, 10.0};
-    const ag_input_t nan_depth = {&ok, 1u, NAN, next_time(), 20.0};
-    const ag_input_t too_many = {&ok, AG_UNITS_MAX + 1u, 0.0, next_time(), 20.0};
-    const ag_input_t null_units = {NULL, 1u, 0.0, next_time(), 20.0};
+    const ag_input_t nan_depth = {&ok, 1u, NAN, next_time(), 20.0, false};
+    const ag_input_t too_many = {&ok, AG_UNITS_MAX + 1u, 0.0, next_time(), 20.0, false};
+    const ag_input_t null_units = {NULL, 1u, 0.0, next_time(), 20.0, false};
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &nan_depth, &out));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &too_many, &out));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &null_units, &out));
-    const ag_input_t now = {&ok, 1u, 0.0, next_time(), 20.0};
-    const ag_input_t earlier = {&ok, 1u, 0.0, now.time_s - 1.0, 20.0};
-    const ag_input_t nan_time = {&ok, 1u, 0.0, NAN, 20.0};
+    const ag_input_t now = {&ok, 1u, 0.0, next_time(), 20.0, false};
+    const ag_input_t earlier = {&ok, 1u, 0.0, now.time_s - 1.0, 20.0, false};
+    const ag_input_t nan_time = {&ok, 1u, 0.0, NAN, 20.0, false};
     TEST_ASSERT_EQUAL_INT(MD_OK, ag_apply(&g, &now, &out));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &earlier, &out));
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_apply(&g, &nan_time, &out));
@@ -515,6 +637,12 @@ static void test_invalid_input_holds_and_is_counted(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
     c = cfg;
     c.baseline_new_um = c.baseline_min_um + 1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
+    c = cfg;
+    c.pace_um = -1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
+    c = cfg;
+    c.settle_um = NAN;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, ag_config_check(&c));
     c = cfg;
     c.top_k = 0u;
@@ -562,6 +690,10 @@ int main(void)
     RUN_TEST(test_a_probe_towards_a_neuron_on_the_path_goes_back);
     RUN_TEST(test_an_artefact_burst_does_not_freeze_the_search);
     RUN_TEST(test_amp_stop_is_a_ceiling_for_every_unit);
+    RUN_TEST(test_the_pace_bounds_the_give_back_still_to_come);
+    RUN_TEST(test_the_tissue_settles_after_the_give_back);
+    RUN_TEST(test_a_standing_tip_follows_the_give_back);
+    RUN_TEST(test_advances_shorten_as_the_unit_gets_louder);
     RUN_TEST(test_invalid_input_holds_and_is_counted);
     RUN_TEST(test_robust_amplitude_is_the_kth_largest_window);
     return UNITY_END();

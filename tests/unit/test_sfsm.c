@@ -59,8 +59,14 @@ static md_status_t cycle(const sfsm_input_t *in)
 {
     const md_status_t st = sfsm_decide(&sm, in, &out);
     TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(cfg.move_max_um, fabs(out.move_um));
-    if (holds_still(out.state)) {
+    const bool approach = (out.reason == SFSM_R_APPROACH) || (out.reason == SFSM_R_APPROACH_BACK);
+    if (holds_still(out.state) && !approach) {
         TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
+    }
+    if (approach) { /* only from Neuron Isolated, in settled tissue, one approach step at most */
+        TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+        TEST_ASSERT_TRUE(in->settled);
+        TEST_ASSERT_LESS_OR_EQUAL_DOUBLE(cfg.approach_um + 1e-9, fabs(out.move_um));
     }
     if (isfinite(in->depth_um) && (in->depth_min_um < in->depth_max_um) && (in->depth_um >= in->depth_min_um) &&
         (in->depth_um <= in->depth_max_um)) {
@@ -176,6 +182,14 @@ static void test_config_defaults_and_checks(void)
     bad.search_span_um = -1.0;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
     bad.search_span_um = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad = cfg;
+    bad.approach_um = cfg.move_max_um + 1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad.approach_um = -1.0;
+    TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
+    bad = cfg;
+    bad.approach_gain = NAN;
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, sfsm_config_check(&bad));
     bad = cfg;
     bad.initial_dir = 0;
@@ -897,6 +911,124 @@ static void test_invalid_input_halts_and_is_counted(void)
     TEST_ASSERT_EQUAL_INT(SFSM_SPIKE_SEARCH, out.state);
 }
 
+/* Isolated on TRACK_A (reference 8 at 1000 µm) with the settled approach on
+ * (5 µm, 3 % per step); the R-cycle window at 1000 µm is full. */
+static void to_isolated_approaching(void)
+{
+    to_isolated();
+    cfg.approach_um = 5.0;
+    cfg.approach_gain = 0.03;
+    sm.cfg = cfg;
+}
+
+/* The isolated neuron as the approach sees it: well isolated (IQM above γ3). */
+static sfsm_input_t isolated_input(double depth, double snr)
+{
+    sfsm_input_t in = base();
+    converged(&in);
+    in.iqm = cfg.gamma3 + 0.5;
+    in.snr = snr;
+    in.depth_um = depth;
+    in.settled = true;
+    return in;
+}
+
+/* The first approach step, from a full window at 1000 µm. */
+static void first_approach_step(void)
+{
+    sfsm_input_t in = isolated_input(1000.0, 8.0);
+    in.settled = false;
+    run(&in, cfg.wait_r);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
+    in.settled = true;
+    run(&in, 1u);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 5.0, out.move_um);
+    TEST_ASSERT_EQUAL_INT(SFSM_R_APPROACH, out.reason);
+}
+
+/* R cycles of the isolated neuron at `depth` with `snr`, the tissue settled;
+ * returns the last output's step. */
+static double stand(double depth, double snr)
+{
+    const sfsm_input_t in = isolated_input(depth, snr);
+    for (unsigned i = 0u; i + 1u < cfg.wait_r; ++i) {
+        TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&in));
+        TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um); /* the window at this depth is not full yet */
+    }
+    TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&in));
+    TEST_ASSERT_EQUAL_INT(SFSM_NEURON_ISOLATED, out.state);
+    return out.move_um;
+}
+
+/* Settled approach (ours): Ω3 stops the tip short of the neuron's SNR peak;
+ * once the tissue has settled the tip closes in on a well-isolated neuron by
+ * approach_um while each step raises the SNR by approach_gain, and stays
+ * where the gain ran out. The reference moves with it. In crowded tissue
+ * (mean IQM below γ3) it holds. */
+static void test_settled_approach_climbs_to_the_peak_and_stays(void)
+{
+    to_isolated_approaching();
+    sfsm_input_t in = isolated_input(1000.0, 8.0);
+    in.iqm = cfg.gamma3 - 0.5; /* crowded: isolated by loudness, not by its moat */
+    run(&in, 3u * cfg.wait_r);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, out.move_um);
+    TEST_ASSERT_FALSE(sfsm_holds_lone_neuron(&sm));
+    first_approach_step(); /* well isolated; the tissue settles on the last cycle */
+    TEST_ASSERT_TRUE(sfsm_holds_lone_neuron(&sm));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 5.0, stand(1005.0, 9.0)); /* +12.5 %: on */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 9.0, sm.ref_snr);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1005.0, sm.ref_depth_um);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, stand(1010.0, 9.1)); /* +1.1 %: stay here */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1010.0, sm.ref_depth_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 9.1, sm.ref_snr);
+    TEST_ASSERT_TRUE(sm.approach_done);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, stand(1010.0, 9.5)); /* done: the reference ratchet takes over */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 9.5, sm.ref_snr);
+    TEST_ASSERT_EQUAL_UINT32(2u, sm.approach_steps);
+}
+
+/* A step past the peak lowers the SNR: one step back, and the approach ends. */
+static void test_settled_approach_steps_back_past_the_peak(void)
+{
+    to_isolated_approaching();
+    first_approach_step();
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, -5.0, stand(1005.0, 7.6));
+    TEST_ASSERT_EQUAL_INT(SFSM_R_APPROACH_BACK, out.reason);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 1000.0, sm.ref_depth_um);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 8.0, sm.ref_snr);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, stand(1000.0, 8.0));
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, stand(1000.0, 8.0));
+}
+
+/* Every approach step passes the approach guard: a step it cut (the depth
+ * did not change) or a retraction behind the step's start ends the
+ * approach; a new isolation starts a new one. Off (approach_um 0): hold. */
+static void test_settled_approach_ends_where_the_guard_stopped_it(void)
+{
+    to_isolated_approaching();
+    first_approach_step();
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, stand(1000.0, 8.0)); /* the guard held the tip */
+    TEST_ASSERT_TRUE(sm.approach_done);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, stand(1000.0, 9.0));
+    to_isolated_approaching();
+    first_approach_step();
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, stand(990.0, 7.0)); /* the guard retracted */
+    TEST_ASSERT_TRUE(sm.approach_done);
+    sfsm_input_t in = base(); /* Ω3 declares a new isolation: a new approach */
+    in.iqm = cfg.gamma3 + 1.0;
+    in.snr = 10.0;
+    in.dominant_track = TRACK_B;
+    in.depth_um = 990.0;
+    run(&in, 1u);
+    TEST_ASSERT_FALSE(sm.approach_done);
+    TEST_ASSERT_FALSE(sfsm_holds_lone_neuron(NULL));
+    to_gradient_search();
+    TEST_ASSERT_FALSE(sfsm_holds_lone_neuron(&sm));
+    to_isolated(); /* off */
+    TEST_ASSERT_DOUBLE_WITHIN(0.0, 0.0, stand(1000.0, 8.0));
+    TEST_ASSERT_EQUAL_UINT32(0u, sm.approach_steps);
+}
+
 /* Random plausible inputs over long runs: every step within ±Δmax and inside
  * the window; zero in the hold states (checked in cycle()). */
 static void test_steps_bounded_under_random_inputs(void)
@@ -905,6 +1037,8 @@ static void test_steps_bounded_under_random_inputs(void)
     md_rng_seed(&rng, 99u);
     for (unsigned run_i = 0u; run_i < 20u; ++run_i) {
         start();
+        cfg.approach_um = (run_i % 2u == 0u) ? 0.0 : 5.0;
+        sm.cfg = cfg;
         double depth = 2500.0;
         for (unsigned k = 0u; k < 300u; ++k) {
             sfsm_input_t in = base();
@@ -920,6 +1054,7 @@ static void test_steps_bounded_under_random_inputs(void)
             in.suggestion.move_um = 200.0 * md_rng_uniform(&rng) - 100.0;
             in.estop = md_rng_uniform(&rng) < 0.01;
             in.resume = md_rng_uniform(&rng) < 0.05;
+            in.settled = md_rng_uniform(&rng) < 0.5;
             TEST_ASSERT_EQUAL_INT(MD_OK, cycle(&in));
             depth += out.move_um;
         }
@@ -965,6 +1100,9 @@ int main(void)
     RUN_TEST(test_halt_and_resume);
     RUN_TEST(test_no_motion_while_halted);
     RUN_TEST(test_invalid_input_halts_and_is_counted);
+    RUN_TEST(test_settled_approach_climbs_to_the_peak_and_stays);
+    RUN_TEST(test_settled_approach_steps_back_past_the_peak);
+    RUN_TEST(test_settled_approach_ends_where_the_guard_stopped_it);
     RUN_TEST(test_steps_bounded_under_random_inputs);
     RUN_TEST(test_every_row_was_exercised);
     return UNITY_END();

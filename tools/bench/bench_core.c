@@ -434,7 +434,7 @@ static md_status_t rp_control(void)
             unit[n++] = (ag_unit_t){g_ws.res.track[j].id, g_ws.track_snr[j]};
         }
     }
-    const ag_input_t gin = {unit, n, depth, g_guard_time_s, out.move_um};
+    const ag_input_t gin = {unit, n, depth, g_guard_time_s, out.move_um, false};
     g_guard_time_s += (double)g_rp_n / (double)g_rp_fs_hz;
     ag_output_t gout;
     (void)ag_apply(&g_guard, &gin, &gout); /* a refusal holds the electrode: no error of the cycle */

@@ -30,6 +30,10 @@ void ag_config_default(ag_config_t *cfg)
     cfg->creep_horizon_s = 30.0;
     cfg->fence_lapse = 30u;
     cfg->probe_um = 5.0;
+    cfg->pace_um = 0.0;
+    cfg->settle_um = 2.0;
+    cfg->follow = false;
+    cfg->near_scale = false;
     cfg->top_k = 5u;
 }
 
@@ -56,7 +60,8 @@ md_status_t ag_config_check(const ag_config_t *cfg)
     if (!positive(cfg->growth_max) || cfg->growth_stop > cfg->growth_max || !positive(cfg->growth_slow) ||
         cfg->growth_slow > cfg->growth_stop || !fraction(cfg->fence_drop_frac) || !fraction(cfg->relax_frac) ||
         !positive(cfg->relax_tau_s) || !positive(cfg->creep_horizon_s) || cfg->fence_lapse < 1u ||
-        !positive(cfg->probe_um)) {
+        !positive(cfg->probe_um) || !(isfinite(cfg->pace_um) && cfg->pace_um >= 0.0) ||
+        !(isfinite(cfg->settle_um) && cfg->settle_um >= 0.0)) {
         return MD_E_ARG;
     }
     return MD_OK;
@@ -430,7 +435,9 @@ static void tend_fence(ag_state_t *s, const ag_snapshot_t *now)
 static void track_creep(ag_state_t *s, double moved, double time_s)
 {
     if (s->hist_n > 0u) {
+        const double before = s->pending_um;
         s->pending_um *= exp(-(time_s - s->time_s) / s->cfg.relax_tau_s);
+        s->followed_um += before - s->pending_um;
     }
     s->pending_um += (moved > 0.0) ? s->cfg.relax_frac * moved : 0.0;
     s->time_s = time_s;
@@ -498,17 +505,20 @@ static bool retract(ag_state_t *s, const ag_snapshot_t *now, bool still, double 
 }
 
 /* Rule 5: a unit at amp_slow whose growth on the latest advance was not
- * measured or reached growth_slow: the tip may be closing in on it. */
-static bool loud_and_closing(const ag_state_t *s, const ag_snapshot_t *now)
+ * measured or reached growth_slow: the tip may be closing in on it. Returns
+ * the loudest such unit's amplitude (rule 10 scales the advance by it), 0 if
+ * none. */
+static double loud_and_closing(const ag_state_t *s, const ag_snapshot_t *now)
 {
+    double loudest = 0.0;
     for (uint8_t k = 0u; k < now->n; ++k) {
         double g = 0.0;
         if (now->unit[k].amp >= s->cfg.amp_slow &&
             (!advance_growth(s, now->unit[k].id, &g) || g >= s->cfg.growth_slow)) {
-            return true;
+            loudest = fmax(loudest, now->unit[k].amp);
         }
     }
-    return false;
+    return loudest;
 }
 
 /* Rule 6: a probe of probe_um past the fence, when the tip stands at it,
@@ -549,18 +559,67 @@ static double fence_step(ag_state_t *s, const ag_snapshot_t *now, double step, a
     return step;
 }
 
-/* Rules 3 to 7: the step. */
-static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double requested, bool still, ag_action_t *action)
+/* Rule 8: in active tissue an advance may leave at most pace_um of give-back
+ * to come (each µm of advance adds relax_frac µm of it). A remainder shorter
+ * than a standstill is no step. */
+static double pace_step(const ag_state_t *s, const ag_snapshot_t *now, double step, ag_action_t *action)
 {
     const ag_config_t *c = &s->cfg;
-    double step = requested;
+    if (!(c->pace_um > 0.0) || !(step > 0.0) || largest_amp(now) < c->amp_floor) {
+        return step;
+    }
+    const double room = fmax((c->pace_um - s->pending_um) / c->relax_frac, 0.0);
+    if (step <= room) {
+        return step;
+    }
+    *action = (*action == AG_PASS) ? AG_SLOWED : *action;
+    return (room >= c->still_um) ? room : 0.0;
+}
+
+/* Rule 9: a tip the SFSM lets stand in loud tissue follows the give-back:
+ * it keeps a target that moves back by the give-back as it comes, and goes
+ * there once it is still_um or more away (the servo stops within its
+ * tolerance, so the target, not the last step, is what is followed). Any
+ * other move, or quiet tissue, ends the following. */
+static double follow_step(ag_state_t *s, const ag_snapshot_t *now, bool lone, double step, ag_action_t *action)
+{
+    const ag_config_t *c = &s->cfg;
+    const double came = s->followed_um;
+    s->followed_um = 0.0;
+    if (!c->follow || lone || fabs(step) >= c->still_um || largest_amp(now) < c->amp_slow) {
+        s->following = false;
+        return step;
+    }
+    if (!s->following) {
+        s->following = true;
+        s->follow_target_um = now->depth_um;
+        return step;
+    }
+    s->follow_target_um -= came;
+    if (now->depth_um - s->follow_target_um < c->still_um) {
+        return step;
+    }
+    s->follows++;
+    s->follow_moved = true;
+    *action = AG_RETRACT;
+    return s->follow_target_um - now->depth_um;
+}
+
+/* Rules 3 to 10: the step. */
+static double limit_step(ag_state_t *s, const ag_snapshot_t *now, const ag_input_t *in, bool still, ag_action_t *action)
+{
+    const ag_config_t *c = &s->cfg;
+    double step = in->move_um;
     *action = AG_PASS;
     if (retract(s, now, still, &step)) {
         *action = AG_RETRACT;
         return step;
     }
-    if (step > c->move_near_um && loud_and_closing(s, now)) {
-        step = c->move_near_um;
+    const double loud = loud_and_closing(s, now);
+    const double near = (c->near_scale && loud > 0.0) ? c->move_near_um * fmin(1.0, c->amp_slow / loud)
+                                                      : c->move_near_um;
+    if (loud > 0.0 && step > near) {
+        step = near;
         *action = AG_SLOWED;
     }
     const double room = fmax(ceiling_room_um(s, now) - creep_soon_um(s), 0.0);
@@ -569,7 +628,7 @@ static double limit_step(ag_state_t *s, const ag_snapshot_t *now, double request
         *action = AG_BLOCKED;
         put_fence(s, now->depth_um + room);
     }
-    return fence_step(s, now, step, action);
+    return follow_step(s, now, in->lone, pace_step(s, now, fence_step(s, now, step, action), action), action);
 }
 
 static bool input_valid(const ag_state_t *s, const ag_input_t *in)
@@ -618,14 +677,16 @@ md_status_t ag_apply(ag_state_t *s, const ag_input_t *in, ag_output_t *out)
     ag_snapshot_t now;
     snapshot(in, &now);
     const double moved = (s->hist_n > 0u) ? now.depth_um - history_back(s, 0u)->depth_um : 0.0;
-    const bool still = s->hist_n > 0u && fabs(moved) < s->cfg.still_um;
+    /* a retraction that followed the give-back keeps the standstill (rule 3) */
+    const bool still = s->hist_n > 0u && (fabs(moved) < s->cfg.still_um || s->follow_moved);
+    s->follow_moved = false;
     track_creep(s, moved, in->time_s);
     age_ceilings(s, &now);
     if (moved >= s->cfg.still_um) {
         mark_steep(s, &now, out); /* judged on arrival after an advance only */
     }
     tend_fence(s, &now);
-    out->move_um = limit_step(s, &now, in->move_um, still, &out->action);
+    out->move_um = limit_step(s, &now, in, still, &out->action);
     push_history(s, &now);
     s->last_growth = out->growth;
     s->limited += (out->action != AG_PASS) ? 1u : 0u;
@@ -633,4 +694,9 @@ md_status_t ag_apply(ag_state_t *s, const ag_input_t *in, ag_output_t *out)
     out->fence_um = s->fence_um;
     out->pending_um = s->pending_um;
     return MD_OK;
+}
+
+bool ag_settled(const ag_state_t *s)
+{
+    return (s != NULL) && (s->pending_um <= s->cfg.settle_um);
 }

@@ -85,7 +85,23 @@
 ///     follows the give-back due then as it comes, retracting by what came
 ///     since (near the soma the amplitude hardly grows, and the give-back
 ///     after a descent is more than the room a ceiling leaves). Following
-///     the give-back keeps the standstill of rule 3.
+///     the give-back keeps the standstill of rule 3;
+///  8. *pace*: while a unit reaches amp_floor (active tissue, where a neuron
+///     louder ones mask may lie ahead unseen), no advance lifts the give-back
+///     still to come above pace_um: what the tissue brings back after the tip
+///     stops is then at most pace_um, whatever lies below. 0 turns it off.
+///     The tissue counts as *settled* (ag_settled) once that give-back is at
+///     most settle_um: what the SFSM's settled approach waits for;
+///  9. *follow*: while the SFSM lets the tip stand with a unit at amp_slow,
+///     the tip retracts by the give-back that came since it stopped (once it
+///     adds up to still_um): the tissue's geometry around the tip stays as it
+///     was when the tip stopped, so no neuron, seen or masked, is carried
+///     closer by the give-back. Such a retraction keeps the standstill of
+///     rule 3, which then sees what the model does not (drift). It stands
+///     down while the caller holds a lone, well-isolated neuron
+///     (ag_input_t.lone). Off when follow is false;
+/// 10. *near scale*: with near_scale, rule 5's longest advance is
+///     move_near_um × amp_slow / the loudest unit that may be ahead.
 /// Invalid input (non-finite, or time running backwards) holds the electrode
 /// and is counted.
 ///
@@ -150,6 +166,10 @@ typedef struct {
     double relax_tau_s;      ///< time constant of that give-back
     double creep_horizon_s;  ///< rule 7 counts the give-back due within this time
     double probe_um;         ///< a probe past the fence (rule 6)
+    double pace_um;          ///< rule 8: most give-back an advance in active tissue may leave to come (0: off)
+    double settle_um;        ///< give-back still to come at or below which the tissue counts as settled
+    bool follow;             ///< rule 9: a standing tip follows the give-back
+    bool near_scale;         ///< rule 5: move_near_um shrinks as amp_slow / amplitude
     uint16_t fence_lapse;    ///< quiet intervals (no unit at amp_floor) after which a fence lapses
     uint8_t top_k;           ///< robust amplitude = k-th largest window amplitude (1..AG_TOP_K_MAX)
 } ag_config_t;
@@ -189,9 +209,13 @@ typedef struct {
     double probe_from_um;     ///< the fence before the probe
     double probe_level;       ///< the level there
     double pending_um;        ///< rule 7: tissue give-back still to come
+    double followed_um;       ///< rule 9: give-back come over the latest interval
+    bool following;           ///< rule 9: the tip stands and follows the give-back
+    bool follow_moved;        ///< rule 9: the latest step was a following retraction
+    double follow_target_um;  ///< rule 9: where the tip stands in the tissue's frame
     double time_s;            ///< the latest interval's time
     uint32_t cycles, ceilings_set, retractions, lapses, limited, bad_inputs;
-    uint32_t fences_set, fence_moves, fence_lapses, creep_retractions, probes, probes_steep;
+    uint32_t fences_set, fence_moves, fence_lapses, creep_retractions, probes, probes_steep, follows;
 } ag_state_t;
 
 typedef struct {
@@ -200,6 +224,7 @@ typedef struct {
     double depth_um;        ///< depth at which the interval was recorded
     double time_s;          ///< when it was recorded (s; finite, never less than the interval before)
     double move_um;         ///< the SFSM's step (signed, + advances)
+    bool lone;              ///< the SFSM holds one well-isolated neuron (IQM >= γ3): rule 9 stands down
 } ag_input_t;
 
 typedef struct {
@@ -219,7 +244,7 @@ void ag_config_default(ag_config_t *cfg);
 /// < amp_stop, climb_frac <= climb_free_frac, growth_slow <= growth_stop
 /// <= growth_max,
 /// fence_drop_frac and relax_frac in (0, 1), fence_lapse >= 1, probe_um,
-/// relax_tau_s and creep_horizon_s > 0,
+/// relax_tau_s and creep_horizon_s > 0, pace_um and settle_um >= 0,
 /// 1 <= top_k <= AG_TOP_K_MAX), else MD_E_ARG.
 md_status_t ag_config_check(const ag_config_t *cfg);
 
@@ -242,5 +267,9 @@ md_status_t ag_robust_amplitude_i16(const int16_t *wave, size_t n, size_t stride
 /// a NULL unit array with n_units > 0 (out: step 0, AG_BAD_INPUT, counted).
 /// O(AG_HISTORY · AG_UNITS_MAX²).
 md_status_t ag_apply(ag_state_t *s, const ag_input_t *in, ag_output_t *out);
+
+/// True when the give-back still to come (rule 7, as of the latest interval)
+/// is at most cfg.settle_um; false on NULL.
+bool ag_settled(const ag_state_t *s);
 
 #endif

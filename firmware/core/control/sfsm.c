@@ -70,7 +70,10 @@ static const sfsm_state_info_t SFSM_INFO[SFSM_STATE_COUNT] = {
                              "optimiser step (eq. 2.1; m*=2: ±Δmax; m*=1: Δsample); hold if converged, "
                              "if IQM < γ1 or no dominant track",
                              "drop the isolation reference; reversal count := 0"},
-    [SFSM_NEURON_ISOLATED] = {"Neuron Isolated", "Isolated", "none (hold)",
+    [SFSM_NEURON_ISOLATED] = {"Neuron Isolated", "Isolated",
+                              "hold; settled approach (ours): once the tissue has settled, approach_um towards "
+                              "the neuron while each step raises its SNR by approach_gain, one step back if "
+                              "the last lowered it",
                               "none (the transition's action sets the reference)"},
     [SFSM_REESTIMATE_GRADIENT] = {"Re-Estimate Gradient", "Re-Isolate",
                                   "-Δresample (retract); hold while no dominant track",
@@ -127,6 +130,8 @@ static const char *const SFSM_REASON_NAME[SFSM_REASON_COUNT] = {
     [SFSM_R_LOW_IQM_HOLD] = "low_iqm_hold",
     [SFSM_R_NO_DOMINANT_HOLD] = "no_dominant_hold",
     [SFSM_R_RETRACT] = "retract",
+    [SFSM_R_APPROACH] = "approach",
+    [SFSM_R_APPROACH_BACK] = "approach_back",
 };
 
 const sfsm_row_t *sfsm_table(size_t *n)
@@ -181,6 +186,8 @@ void sfsm_config_default(sfsm_config_t *cfg)
     cfg->lost_cycles = 5u;
     cfg->search_span_um = 100.0;
     cfg->initial_dir = 1;
+    cfg->approach_um = 0.0;
+    cfg->approach_gain = 0.03;
 }
 
 static bool sfsm_step_ok(double v, double cap)
@@ -201,7 +208,9 @@ md_status_t sfsm_config_check(const sfsm_config_t *cfg)
                     (cfg->snr_drop_frac > 0.0) && (cfg->snr_drop_frac < 1.0) && isfinite(cfg->snr_min) &&
                     (cfg->snr_min >= 0.0) && (cfg->wait_r >= 1u) && (cfg->wait_r <= SFSM_R_MAX) &&
                     (cfg->lost_cycles >= 1u) && isfinite(cfg->search_span_um) && (cfg->search_span_um >= 0.0) &&
-                    ((cfg->initial_dir == 1) || (cfg->initial_dir == -1));
+                    ((cfg->initial_dir == 1) || (cfg->initial_dir == -1)) && isfinite(cfg->approach_um) &&
+                    (cfg->approach_um >= 0.0) && (cfg->approach_um <= cap) && isfinite(cfg->approach_gain) &&
+                    (cfg->approach_gain >= 0.0);
     return ok ? MD_OK : MD_E_ARG;
 }
 
@@ -364,19 +373,25 @@ static void sfsm_note_snr(sfsm_t *sm, const sfsm_input_t *in)
         sm->recent_depth_um = in->depth_um;
     }
     sm->recent_snr[sm->recent_head] = in->snr;
+    sm->recent_iqm[sm->recent_head] = in->iqm;
     sm->recent_head = (uint8_t)((sm->recent_head + 1u) % sm->cfg.wait_r);
     if (sm->recent_n < sm->cfg.wait_r) {
         sm->recent_n++;
     }
 }
 
-static double sfsm_recent_mean(const sfsm_t *sm)
+static double sfsm_mean(const double *v, uint8_t n)
 {
     double s = 0.0;
-    for (size_t i = 0u; i < sm->recent_n; ++i) {
-        s += sm->recent_snr[i];
+    for (size_t i = 0u; i < n; ++i) {
+        s += v[i];
     }
-    return s / (double)sm->recent_n;
+    return s / (double)n;
+}
+
+static double sfsm_recent_mean(const sfsm_t *sm)
+{
+    return sfsm_mean(sm->recent_snr, sm->recent_n);
 }
 
 /* Reference ratchet (ours, docs/sfsm.md): Ω3 can declare isolation tens of
@@ -412,6 +427,9 @@ static void sfsm_do_action(sfsm_t *sm, const sfsm_input_t *in, sfsm_action_t a)
         sm->ref_track = in->dominant_track;
         sm->ref_snr = (sm->recent_n > 0u) ? sfsm_recent_mean(sm) : in->snr;
         sm->ref_depth_um = in->depth_um;
+        sm->approach_dir = sm->search_dir;
+        sm->approach_done = false;
+        sm->approach_has_last = false;
         break;
     case SFSM_A_ADOPT: sm->ref_track = in->dominant_track; break;
     case SFSM_A_TURN:
@@ -448,6 +466,63 @@ static void sfsm_enter(sfsm_t *sm, const sfsm_input_t *in, bool dom, sfsm_state_
         out->reset_curve = true;
         out->reset_track = sm->ref_track;
     }
+}
+
+bool sfsm_holds_lone_neuron(const sfsm_t *sm)
+{
+    return (sm != NULL) && (sm->state == SFSM_NEURON_ISOLATED) && sm->has_ref && (sm->recent_n >= sm->cfg.wait_r) &&
+           (sm->recent_track == sm->ref_track) && (sfsm_mean(sm->recent_iqm, sm->recent_n) >= sm->cfg.gamma3);
+}
+
+/* Settled approach (ours, docs/sfsm.md): Ω3 stops the tip tens of µm before
+ * the neuron's SNR peak, and the tissue's give-back used to carry the neuron
+ * the rest of the way, together with any neuron hidden below it. With the
+ * give-back kept small (approach_guard.h rule 8) the SFSM closes the distance
+ * itself, once the tissue has settled, in steps of approach_um, each judged on
+ * R cycles of the neuron's SNR where it ended: a rise of approach_gain earns
+ * the next step, a fall sends the tip back one step, and either ends the
+ * approach for this isolation. Only a neuron isolated by the thesis' own
+ * standard (mean IQM >= γ3 over those cycles) is approached: in crowded
+ * tissue, where Ω3 fired by loudness, a neuron louder ones mask may lie on
+ * the path. Every step passes the approach guard; a step
+ * it did not let through, or a retraction behind its start, also ends it.
+ * Returns the step (0: none). */
+static double sfsm_approach(sfsm_t *sm, const sfsm_input_t *in, const sfsm_facts_t *f, sfsm_reason_t *why)
+{
+    const sfsm_config_t *k = &sm->cfg;
+    if ((sm->state != SFSM_NEURON_ISOLATED) || !(k->approach_um > 0.0) || sm->approach_done || !f->ours ||
+        !in->settled || (sm->recent_n < k->wait_r)) {
+        return 0.0;
+    }
+    if (!sfsm_holds_lone_neuron(sm)) {
+        return 0.0; /* crowded: Ω3 by loudness, other units close in feature space; wait */
+    }
+    const double m = sfsm_recent_mean(sm);
+    if (sm->approach_has_last) {
+        if ((double)sm->approach_dir * (in->depth_um - sm->approach_last_um) <= SFSM_SAME_DEPTH_UM) {
+            sm->approach_done = true; /* the step was not taken, or the guard retracted */
+            return 0.0;
+        }
+        if (m < sm->approach_last_snr) {
+            sm->approach_done = true;
+            sm->ref_depth_um = sm->approach_last_um;
+            sm->approach_steps++;
+            *why = SFSM_R_APPROACH_BACK;
+            return sm->approach_last_um - in->depth_um;
+        }
+        sm->ref_depth_um = in->depth_um; /* the best position so far: the reference lives here */
+        sm->ref_snr = fmax(sm->ref_snr, m);
+        if (m < sm->approach_last_snr * (1.0 + k->approach_gain)) {
+            sm->approach_done = true;
+            return 0.0;
+        }
+    }
+    sm->approach_has_last = true;
+    sm->approach_last_um = in->depth_um;
+    sm->approach_last_snr = m;
+    sm->approach_steps++;
+    *why = SFSM_R_APPROACH;
+    return (double)sm->approach_dir * k->approach_um;
 }
 
 /* Advances every applicable row's WAIT counter and returns the first row that
@@ -514,7 +589,11 @@ md_status_t sfsm_decide(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out)
         (void)memset(sm->wait, 0, sizeof sm->wait);
         sm->transitions++;
     }
-    const double step = sfsm_policy(sm, in, &f, &why);
+    double step = sfsm_policy(sm, in, &f, &why);
+    if ((out->row < 0) && f.valid) {
+        const double a = sfsm_approach(sm, in, &f, &why);
+        step = (fabs(a) > 0.0) ? a : step;
+    }
     out->move_um = f.valid ? sfsm_clamp(sm, in, step) : 0.0;
     out->clamped = fabs(out->move_um - step) > 1e-9;
     out->reason = why;

@@ -102,7 +102,9 @@ typedef enum {
     SFSM_R_CONVERGED_HOLD,  ///< eq. 2.1 converged, waiting for the isolation conditions
     SFSM_R_LOW_IQM_HOLD,    ///< Ω0: the gradient is not followed
     SFSM_R_NO_DOMINANT_HOLD,
-    SFSM_R_RETRACT,  ///< -Δresample
+    SFSM_R_RETRACT,        ///< -Δresample
+    SFSM_R_APPROACH,       ///< Neuron Isolated, settled tissue: approach_um towards the neuron
+    SFSM_R_APPROACH_BACK,  ///< the last approach step lowered the SNR: back to where it was
     SFSM_REASON_COUNT
 } sfsm_reason_t;
 
@@ -139,6 +141,8 @@ typedef struct {
     uint8_t lost_cycles;      ///< cycles without a dominant track before Spike Search (default 5)
     double search_span_um;  ///< Spike Search turns this far past the last dominant track (default 100, 0: never; ours)
     int8_t initial_dir;     ///< first search direction: +1 advance (default), -1 retract
+    double approach_um;     ///< settled approach step in Neuron Isolated (0: hold, as the thesis; ours)
+    double approach_gain;   ///< relative SNR rise over one approach step that earns the next
 } sfsm_config_t;
 
 /// Inputs of one cycle.
@@ -156,6 +160,8 @@ typedef struct {
     bool fault;                  ///< any fault the application reports
     bool resume;                 ///< operator's resume request (HALTED / WINDOW_LIMIT)
     sc_suggestion_t suggestion;  ///< sc_curve_suggest() of the dominant track's curve at depth_um
+    bool settled;                ///< the tissue has settled (approach_guard.h ag_settled): the settled
+                                 ///< approach may step
 } sfsm_input_t;
 
 /// Result of one cycle.
@@ -182,17 +188,24 @@ typedef struct {
     double ref_depth_um;
     uint8_t wait[SFSM_ROWS_MAX];    ///< consecutive-cycle counters, one per table row
     double recent_snr[SFSM_R_MAX];  ///< last SNRs of recent_track, all at recent_depth_um
+    double recent_iqm[SFSM_R_MAX];  ///< its IQMs of the same cycles
     uint8_t recent_n;
     uint8_t recent_head;
     uint32_t recent_track;
     double recent_depth_um;  ///< depth of those SNRs (a move restarts the window)
     uint32_t cycles;
     uint32_t transitions;
-    uint32_t bad_inputs;   ///< cycles rejected by input validation
-    double seek_best_snr;  ///< best dominant SNR since Gradient Search was entered / turned
-    bool has_anchor;       ///< a dominant track has been seen
-    double anchor_um;      ///< depth where a dominant track was last seen
-    uint8_t leash_turns;   ///< leash turns since the anchor was set (at most SFSM_LEASH_TURNS)
+    uint32_t bad_inputs;       ///< cycles rejected by input validation
+    double seek_best_snr;      ///< best dominant SNR since Gradient Search was entered / turned
+    bool has_anchor;           ///< a dominant track has been seen
+    double anchor_um;          ///< depth where a dominant track was last seen
+    uint8_t leash_turns;       ///< leash turns since the anchor was set (at most SFSM_LEASH_TURNS)
+    int8_t approach_dir;       ///< settled approach: direction of the search that found the neuron
+    bool approach_done;        ///< settled approach ended for this isolation
+    bool approach_has_last;    ///< an approach step was taken from approach_last_um
+    double approach_last_um;   ///< depth the last approach step started from
+    double approach_last_snr;  ///< the neuron's mean SNR there
+    uint32_t approach_steps;   ///< settled approach steps taken (advances and steps back)
 } sfsm_t;
 
 /// Documented defaults.
@@ -200,7 +213,7 @@ void sfsm_config_default(sfsm_config_t *cfg);
 
 /// MD_OK if 0 < steps <= Δmax (finite), 0 < γ1 < γ2 < γ3, 0 < drop < 1,
 /// snr_min >= 0 (finite), 1 <= R <= SFSM_R_MAX, lost_cycles >= 1, search_span_um >= 0 (finite),
-/// initial_dir = ±1; else MD_E_ARG.
+/// initial_dir = ±1, 0 <= approach_um <= Δmax, approach_gain >= 0 (finite); else MD_E_ARG.
 md_status_t sfsm_config_check(const sfsm_config_t *cfg);
 
 /// Starts in Spike Search. MD_E_ARG on NULL or an invalid config. O(1).
@@ -211,6 +224,10 @@ md_status_t sfsm_init(sfsm_t *sm, const sfsm_config_t *cfg);
 /// drives the machine to HALTED (zero step) and returns MD_E_ARG. NULL
 /// arguments: MD_E_ARG, nothing changed. O(table rows).
 md_status_t sfsm_decide(sfsm_t *sm, const sfsm_input_t *in, sfsm_output_t *out);
+
+/// True while Neuron Isolated holds a neuron whose mean IQM over the recent
+/// R-cycle window reaches γ3 (isolated by its moat, not by loudness alone).
+bool sfsm_holds_lone_neuron(const sfsm_t *sm);
 
 /// The const transition table, in priority order; *n receives its length.
 const sfsm_row_t *sfsm_table(size_t *n);
