@@ -416,41 +416,42 @@ static void skip_cycle(md_cycle_t *c, md_node_t *node, md_status_t st, uint64_t 
 }
 
 /* SNR curve and SFSM (§2.2.3-2.2.4); returns the step the SFSM asks for. */
-static double decide(md_electrode_t *el, const md_node_t *node, const md_interval_out_t *po, double depth)
+static double decide(md_decision_scratch_t *d, md_electrode_t *el, const md_node_t *node, const md_interval_out_t *po,
+                     double depth)
 {
     sc_config_t scc;
     sc_cfg_from(&node->params, &scc);
-    sfsm_input_t in;
-    memset(&in, 0, sizeof in);
-    in.has_dominant = po->has_dominant;
-    in.dominant_track = po->dominant;
-    in.snr = po->snr;
-    in.iqm = po->iqm; /* ID_g, not squared (sfsm.h) */
-    in.spikes_seen = po->spikes_seen;
-    in.depth_um = depth;
-    in.depth_min_um = md_params_get(&node->params, MD_P_DEPTH_MIN_UM);
-    in.depth_max_um = md_params_get(&node->params, MD_P_DEPTH_MAX_UM);
-    in.estop = node->estop_latched;
-    in.fault = !md_node_motion_allowed(node);
-    in.resume = el->resume;
-    in.settled = ag_settled(&el->guard);
+    sfsm_input_t *in = &d->sfsm_in;
+    memset(in, 0, sizeof *in);
+    in->has_dominant = po->has_dominant;
+    in->dominant_track = po->dominant;
+    in->snr = po->snr;
+    in->iqm = po->iqm; /* ID_g, not squared (sfsm.h) */
+    in->spikes_seen = po->spikes_seen;
+    in->depth_um = depth;
+    in->depth_min_um = md_params_get(&node->params, MD_P_DEPTH_MIN_UM);
+    in->depth_max_um = md_params_get(&node->params, MD_P_DEPTH_MAX_UM);
+    in->estop = node->estop_latched;
+    in->fault = !md_node_motion_allowed(node);
+    in->resume = el->resume;
+    in->settled = ag_settled(&el->guard);
     if (po->has_dominant) {
         sc_curve_t *curve = NULL;
         if (sc_table_observe(&el->curves, &scc, po->dominant, depth, po->snr, &curve) == MD_OK && curve != NULL) {
-            (void)sc_curve_suggest(curve, &scc, depth, el->sfsm.search_dir, &in.suggestion);
+            (void)sc_curve_suggest(curve, &scc, depth, el->sfsm.search_dir, &in->suggestion);
         }
     }
-    sfsm_output_t out;
-    memset(&out, 0, sizeof out);
-    if (sfsm_decide(&el->sfsm, &in, &out) != MD_OK) {
+    sfsm_output_t *out = &d->sfsm_out;
+    memset(out, 0, sizeof *out);
+    if (sfsm_decide(&el->sfsm, in, out) != MD_OK) {
         return 0.0; /* invalid input: the SFSM is in HALTED and asks for nothing */
     }
     el->resume = false;
-    if (out.reset_curve) {
-        (void)sc_table_reset_track(&el->curves, out.reset_track);
+    if (out->reset_curve) {
+        (void)sc_table_reset_track(&el->curves, out->reset_track);
     }
-    el->flags |= (out.clamped ? MD_TLM_F_CLAMPED : 0u) | ((uint32_t)out.reason << MD_TLM_REASON_SHIFT);
-    return out.move_um;
+    el->flags |= (out->clamped ? MD_TLM_F_CLAMPED : 0u) | ((uint32_t)out->reason << MD_TLM_REASON_SHIFT);
+    return out->move_um;
 }
 
 /* The guard's units: the robust amplitude of all detections (no tracker) and
@@ -470,10 +471,10 @@ static size_t guard_units(const md_workspace_t *ws, const md_interval_out_t *po,
 /* Approach guard after the SFSM (approach_guard.h): may shorten, cancel or
  * reverse the step, in every state and with every tracker. Computed and
  * reported even when disabled, so its effect can be measured. */
-static double guard(md_electrode_t *el, const md_node_t *node, const md_workspace_t *ws, const md_interval_out_t *po,
-                    double depth, double step)
+static double guard(md_decision_scratch_t *d, md_electrode_t *el, const md_node_t *node, const md_workspace_t *ws,
+                    const md_interval_out_t *po, double depth, double step)
 {
-    ag_unit_t unit[AG_UNITS_MAX];
+    ag_unit_t *unit = d->unit;
     const ag_input_t in = {unit, guard_units(ws, po, unit),        depth, (double)el->rec_start_us * 1e-6,
                            step, sfsm_holds_lone_neuron(&el->sfsm)};
     ag_output_t out;
@@ -516,7 +517,7 @@ static uint32_t cycle_start_flags(const md_cycle_t *c, const md_electrode_t *el)
 /* Keeps the interval's results on the electrode and returns the step the SFSM
  * and the approach guard ask for; 0 without a calibrated depth (no decision
  * without one). */
-static double decide_step(md_electrode_t *el, const md_node_t *node, const md_workspace_t *ws,
+static double decide_step(md_decision_scratch_t *d, md_electrode_t *el, const md_node_t *node, const md_workspace_t *ws,
                           const md_interval_out_t *po)
 {
     el->has_dominant = po->has_dominant;
@@ -528,7 +529,7 @@ static double decide_step(md_electrode_t *el, const md_node_t *node, const md_wo
     double step = 0.0;
     if (md_servo_depth_um(&el->servo, &depth) == MD_OK) {
         el->depth_um = depth;
-        step = guard(el, node, ws, po, depth, decide(el, node, po, depth));
+        step = guard(d, el, node, ws, po, depth, decide(d, el, node, po, depth));
     } else {
         el->flags |= MD_TLM_F_NO_DEPTH;
     }
@@ -573,7 +574,7 @@ static void process(md_cycle_t *c, md_node_t *node, uint64_t now_us)
     }
     el->tracked_depth_um = here;
     el->tracked_depth_ok = here_ok;
-    const double step = decide_step(el, node, &c->ws, &po);
+    const double step = decide_step(&c->dec, el, node, &c->ws, &po);
     el->target_um = el->depth_um + step;
     const bool move = begin_move(el, node, step);
     el->cost_chain = work_end(node, w0);

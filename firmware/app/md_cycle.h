@@ -116,10 +116,20 @@ typedef struct {
 /// (pipeline/interval_chain.h). One for all electrodes.
 typedef ic_workspace_t md_workspace_t;
 
+/// Scratch of one electrode's decision (the SFSM's and the approach guard's
+/// inputs and outputs), kept out of the stack frame that also calls down the
+/// tracker, the deepest path (docs/static-analysis.md). One for all electrodes.
+typedef struct {
+    sfsm_input_t sfsm_in;
+    sfsm_output_t sfsm_out;
+    ag_unit_t unit[AG_UNITS_MAX];
+} md_decision_scratch_t;
+
 /// All cycles and the shared workspace.
 typedef struct {
     md_electrode_t el[MD_ELECTRODES];
     md_workspace_t ws;
+    md_decision_scratch_t dec;
     uint8_t active;        ///< electrode whose turn it is
     bool lockstep;         ///< the front-end's heartbeat carries the lockstep flag
     bool was_operational;  ///< node state at the previous call (resume detection)
