@@ -475,27 +475,23 @@ bool sfsm_holds_lone_neuron(const sfsm_t *sm)
 }
 
 /* Settled approach (ours, docs/sfsm.md): Ω3 stops the tip tens of µm before
- * the neuron's SNR peak, and the tissue's give-back used to carry the neuron
- * the rest of the way, together with any neuron hidden below it. With the
- * give-back kept small (approach_guard.h rule 8) the SFSM closes the distance
- * itself, once the tissue has settled, in steps of approach_um, each judged on
- * R cycles of the neuron's SNR where it ended: a rise of approach_gain earns
- * the next step, a fall sends the tip back one step, and either ends the
- * approach for this isolation. Only a neuron isolated by the thesis' own
- * standard (mean IQM >= γ3 over those cycles) is approached: in crowded
+ * the neuron's SNR peak, and the tissue's give-back carries the neuron the
+ * rest of the way, together with any neuron hidden below it. With the
+ * give-back paced or followed (approach_guard.h rules 8 and 9) the SFSM
+ * closes the distance itself, once the tissue has settled, in steps of
+ * approach_um, each judged on R cycles of the neuron's SNR where it ended: a
+ * rise of approach_gain earns the next step, a fall sends the tip back one
+ * step and ends the approach, anything between ends it there. Only a lone
+ * neuron (sfsm_holds_lone_neuron: mean IQM >= γ3) is approached: in crowded
  * tissue, where Ω3 fired by loudness, a neuron louder ones mask may lie on
- * the path. Every step passes the approach guard; a step
- * it did not let through, or a retraction behind its start, also ends it.
+ * the path. Every step passes the approach guard; a step it did not let
+ * through, or a retraction behind its start, also ends the approach.
  * Returns the step (0: none). */
 static double sfsm_approach(sfsm_t *sm, const sfsm_input_t *in, const sfsm_facts_t *f, sfsm_reason_t *why)
 {
     const sfsm_config_t *k = &sm->cfg;
-    if ((sm->state != SFSM_NEURON_ISOLATED) || !(k->approach_um > 0.0) || sm->approach_done || !f->ours ||
-        !in->settled || (sm->recent_n < k->wait_r)) {
-        return 0.0;
-    }
-    if (!sfsm_holds_lone_neuron(sm)) {
-        return 0.0; /* crowded: Ω3 by loudness, other units close in feature space; wait */
+    if (!(k->approach_um > 0.0) || sm->approach_done || !f->ours || !in->settled || !sfsm_holds_lone_neuron(sm)) {
+        return 0.0; /* off, done, not settled, or crowded (Ω3 by loudness): hold */
     }
     const double m = sfsm_recent_mean(sm);
     if (sm->approach_has_last) {
