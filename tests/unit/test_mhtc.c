@@ -190,6 +190,38 @@ static void test_new_neuron_new_id_and_delayed_decision(void)
     TEST_ASSERT_EQUAL_UINT(1u, g_out.hyp_rank_hist[0][0]);
 }
 
+/* A new neuron's first interval, where the leading hypothesis still calls its cluster false:
+ * with provisional IDs its spikes carry the ID that its track keeps once the delayed decision is
+ * made; without them, none. Either way the leading hypothesis has no track for it yet. */
+static int32_t first_sight_id(bool provisional, int32_t *kept, size_t *tracks_then)
+{
+    start(MHTC_TRACKER_MHTC, 2u);
+    g_st.cfg.provisional_ids = provisional;
+    interval_with(true, false, false);
+    interval_with(true, false, false);
+    interval_with(true, false, true); /* C appears */
+    const int32_t first = id_of(3);
+    *tracks_then = g_out.n_tracks;
+    interval_with(true, false, true);
+    interval_with(true, false, true);
+    *kept = id_of(3);
+    return first;
+}
+
+static void test_new_neuron_provisional_id_is_the_one_it_keeps(void)
+{
+    int32_t kept_on = 0, kept_off = 0;
+    size_t tracks_on = 0u, tracks_off = 0u;
+    const int32_t on = first_sight_id(true, &kept_on, &tracks_on);
+    const int32_t off = first_sight_id(false, &kept_off, &tracks_off);
+    TEST_ASSERT_EQUAL_INT32(MHTC_ID_FALSE, off);
+    TEST_ASSERT_TRUE(kept_on > 0);
+    TEST_ASSERT_EQUAL_INT32(kept_on, on);
+    TEST_ASSERT_EQUAL_INT32(kept_off, kept_on); /* the tracks themselves are the same */
+    TEST_ASSERT_EQUAL_size_t(1u, tracks_on);    /* A only: C's track is not in the lead yet */
+    TEST_ASSERT_EQUAL_size_t(tracks_off, tracks_on);
+}
+
 static void test_false_cluster_not_a_track(void)
 {
     start(MHTC_TRACKER_MHTC, 3u);
@@ -641,6 +673,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_silent_neuron_keeps_id);
     RUN_TEST(test_new_neuron_new_id_and_delayed_decision);
+    RUN_TEST(test_new_neuron_provisional_id_is_the_one_it_keeps);
     RUN_TEST(test_false_cluster_not_a_track);
     RUN_TEST(test_ids_monotonic_and_pool_shared);
     RUN_TEST(test_identical_priors_fitted_once);

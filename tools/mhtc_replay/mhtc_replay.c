@@ -11,7 +11,8 @@
 /// usage: mhtc-replay --recording DIR/recording.json --out OUT
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
 ///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
-///          [--warm-jeffreys J | --no-warm-start] [--unimodal-ratio R] [--count-sigma S] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]
+///          [--warm-jeffreys J | --no-warm-start] [--no-provisional-ids] [--unimodal-ratio R] [--count-sigma S]
+///          [--n-scan N] [--q-move K] [--k-miss N] [--quiet]
 /// Writes OUT/labels.csv, OUT/labels_online.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -45,6 +46,7 @@ typedef struct {
     int quiet;
     double warm_jeffreys;
     double unimodal_ratio;
+    int no_provisional_ids;
     double count_sigma;
     double n_scan;
     double q_move;
@@ -84,6 +86,7 @@ static int rp_usage(const char *msg)
                   "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
                   "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] "
+                  "[--no-provisional-ids] "
                   "[--unimodal-ratio R] [--count-sigma S] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
                   msg);
     return 2;
@@ -191,6 +194,10 @@ static int rp_parse_args(int argc, char **argv, rp_options_t *o)
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
         if (strcmp(a, "--quiet") == 0) {
             o->quiet = 1;
+            continue;
+        }
+        if (strcmp(a, "--no-provisional-ids") == 0) {
+            o->no_provisional_ids = 1; /* online labels exactly as the leading hypothesis called them */
             continue;
         }
         if (strcmp(a, "--no-warm-start") == 0) {
@@ -426,6 +433,7 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
     (void)fprintf(f, "  \"intervals\": %u,\n  \"spikes\": %zu,\n  \"q_uv\": %g,\n  \"init_uv\": %g,\n  \"L\": %zu,\n",
                   done, spikes, o->q_uv, o->init_uv, o->L);
     (void)fprintf(f, "  \"unimodal_ratio\": %g,\n", o->unimodal_ratio);
+    (void)fprintf(f, "  \"provisional_ids\": %s,\n", (o->no_provisional_ids == 0) ? "true" : "false");
     (void)fprintf(f, "  \"count_sigma\": %g,\n", o->count_sigma);
     const ic_stats_t *c = &g_ws.stats;
     (void)fprintf(f, "  \"sample_rate_hz\": %u,\n  \"detections_not_kept\": %llu,\n", g_fs_hz,
@@ -559,6 +567,7 @@ static int rp_setup(const rp_options_t *o, int16_t **x)
     }
     cfg.warm_jeffreys = o->warm_jeffreys;
     cfg.unimodal_ratio = o->unimodal_ratio;
+    cfg.provisional_ids = (o->no_provisional_ids == 0);
     cfg.count_sigma = o->count_sigma;
     cfg.n_scan = (uint32_t)o->n_scan;
     cfg.q_move_per_um = o->q_move;

@@ -46,6 +46,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->share_jeffreys = MHTC_SHARE_JEFFREYS_DEFAULT;
     cfg->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
     cfg->seed_from_others = true;
+    cfg->provisional_ids = true;
     cfg->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
     cfg->count_sigma = MHTC_COUNT_SIGMA_DEFAULT;
 }

@@ -134,6 +134,9 @@ typedef struct {
                                   ///< (nats), then converges under its own prior; else (or if that fit
                                   ///< fails) from the §3.3.4 seeds. 0 = off, HUGE_VAL = any parent with as
                                   ///< many tracks (MHTC_WARM_JEFFREYS_DEFAULT)
+    bool provisional_ids;         ///< the report labels a cluster the leading hypothesis calls false with the new
+                                  ///< track ID the most probable other hypothesis of the same model gives it
+                                  ///< (the delayed decision's likely outcome, docs/mhtc.md); false = as called
     bool seed_from_others;        ///< a model class G > J fitted without a warm start is seeded from the
                                   ///< targets of the most probable other parent with G tracks, when there
                                   ///< is one (docs/mhtc.md); false = the §3.3.4 split of its own targets

@@ -458,8 +458,26 @@ static void mhtc_count_deleted(mhtc_state_t *st, const mhtc_workspace_t *ws)
     }
 }
 
+/* A cluster the leading hypothesis calls false is labelled with the ID of the new track that the
+ * most probable other hypothesis of the same model (same clusters) starts from it, if one does.
+ * With λφ > λν a new neuron is false at first sight and enters the leading hypothesis one interval
+ * later under that lineage's ID (the delayed decision, docs/mhtc.md), so its first interval gets the
+ * ID it keeps instead of none. Only labels change: the leading hypothesis' tracks are as decided. */
+static void mhtc_provisional_ids(const mhtc_state_t *st, uint32_t first_new_id, int32_t *cluster_track)
+{
+    const mhtc_hyp_t *lead = &st->hyp[0];
+    for (size_t g = 0u; g < lead->g; ++g) {
+        for (size_t i = 1u; (i < st->n_hyp) && (cluster_track[g] == MHTC_ID_FALSE); ++i) {
+            const int32_t id = st->hyp[i].hist_id[0][g];
+            if ((st->hyp[i].model == lead->model) && (id >= (int32_t)first_new_id)) {
+                cluster_track[g] = id;
+            }
+        }
+    }
+}
+
 static void mhtc_report(const mhtc_state_t *st, const mhtc_input_t *in, const mhtc_workspace_t *ws, size_t cand0,
-                        mhtc_result_t *out)
+                        uint32_t first_new_id, mhtc_result_t *out)
 {
     const mhtc_hyp_t *h = &st->hyp[0];
     const mhtc_model_t *m = &ws->model[ws->cand[cand0].model];
@@ -473,6 +491,9 @@ static void mhtc_report(const mhtc_state_t *st, const mhtc_input_t *in, const mh
     out->params = m->fit.params;
     memcpy(out->n_soft, m->fit.n_soft, sizeof out->n_soft);
     memcpy(out->cluster_track, h->hist_id[0], sizeof out->cluster_track);
+    if (st->cfg.provisional_ids) {
+        mhtc_provisional_ids(st, first_new_id, out->cluster_track);
+    }
     if (m->g > 0u) {
         memcpy(out->labels, m->labels, in->n * sizeof out->labels[0]);
     }
@@ -535,6 +556,7 @@ static void mhtc_nscan(mhtc_state_t *st)
 md_status_t mhtc_commit(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace_t *ws, mhtc_result_t *out)
 {
     uint32_t next_id = st->next_id;
+    const uint32_t first_new_id = next_id;
     uint8_t cand_of_child[MHTC_L_MAX];
     const size_t n_next = mhtc_stage(st, in, ws, &next_id, cand_of_child);
     if (n_next == 0u) {
@@ -558,7 +580,7 @@ md_status_t mhtc_commit(mhtc_state_t *st, const mhtc_input_t *in, mhtc_workspace
     st->d_w = in->basis->d_w;
     st->interval++;
     st->stats.steps++;
-    mhtc_report(st, in, ws, cand_of_child[0], out);
+    mhtc_report(st, in, ws, cand_of_child[0], first_new_id, out);
     return MD_OK;
 }
 
