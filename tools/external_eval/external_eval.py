@@ -354,7 +354,8 @@ def md_method(a, data):
     a("- `mhtc`, `map-nn`, `ml-nn`, `gnn`: `mhtc-replay --tracker T` with its defaults (10 s intervals, "
       "wavelet detection, 1.15 ms windows, d = 2 PCA per interval, q = 10 µV, docs/mhtc.md). `mhtc` is "
       "scored by `labels.csv` (the final best hypothesis traced back through its parents), `mhtc-online` by "
-      "`labels_online.csv` of the same run (the leading hypothesis of each interval as it was then).")
+      "`labels_online.csv` of the same run (the leading hypothesis of each interval as it was then, with "
+      "provisional IDs for the clusters it has not yet decided on: docs/mhtc.md).")
     a("- `peer`: `peer_stonesoup.py RECDIR OUT` with its defaults (5 MAD-σ threshold, PCA fitted on interval "
       "0, GMM G = 1..4 by BIC per interval, Stone Soup GNN Kalman tracker), run in the project venv "
       "(its pins, Stone Soup 1.9.1 and scikit-learn, are in requirements.txt).")
