@@ -95,6 +95,7 @@ static void mhtc_cfg_from(const md_params_t *p, mhtc_config_t *cfg)
     cfg->init_var = q * q;
     cfg->unimodal_ratio = md_params_get(p, MD_P_MHTC_UNIMODAL_RATIO);
     cfg->count_sigma = md_params_get(p, MD_P_MHTC_COUNT_SIGMA);
+    cfg->lambda_first = md_params_get(p, MD_P_MHTC_LAMBDA_FIRST);
 }
 
 /* Tunables take effect at the start of a cycle; an inconsistent set (e.g.
@@ -127,6 +128,7 @@ static void apply_params(md_electrode_t *el, const md_node_t *node)
     el->mhtc.cfg.q_process = mc.q_process;
     el->mhtc.cfg.unimodal_ratio = mc.unimodal_ratio; /* read per fit: safe between intervals */
     el->mhtc.cfg.count_sigma = mc.count_sigma;       /* read per association: likewise */
+    el->mhtc.cfg.lambda_first = mc.lambda_first;     /* likewise; used until the first hypothesis exists */
 }
 
 md_status_t md_cycle_init(md_cycle_t *c, const md_node_t *node)

@@ -95,6 +95,10 @@ static const md_param_def_t PARAM_TABLE[MD_P_COUNT] = {
     [MD_P_MHTC_COUNT_SIGMA] = {0x2043u, "mhtc_count_sigma", "", 0.0, 100.0, MHTC_COUNT_SIGMA_DEFAULT, MD_PARAM_F_CONFIG,
                                "MHTC: a cluster continuing a track whose spike count differs by "
                                "a factor e^s from the track's last costs half a nat; 0: no count term"},
+    [MD_P_MHTC_LAMBDA_FIRST] = {0x2044u, "mhtc_lambda_first", "", 0.0001, 1.0, MHTC_LAMBDA_FIRST_DEFAULT,
+                                MD_PARAM_F_CONFIG,
+                                "MHTC: density of new neurons in the first interval after a (re)start; above "
+                                "lambda_false (0.015) a cluster seen then is a track at once"},
     [MD_P_GUARD_ENABLE] = {0x2050u, "guard_enable", "", 0.0, 1.0, 1.0, MD_PARAM_F_MOTION | MD_PARAM_F_INTEGER,
                            "approach guard limits motion (0: it is computed and reported, never applied)"},
     [MD_P_GUARD_GROWTH_STOP] = {0x2051u, "guard_growth_stop", "1/um", 0.001, 1.0, 0.022, MD_PARAM_F_MOTION,

@@ -70,6 +70,7 @@ typedef enum {
     MD_P_TRACKER,                ///< tracker: 0 MHTC, 1 MAP-NN, 2 ML-NN, 3 GNN (mhtc_tracker_t)
     MD_P_MHTC_UNIMODAL_RATIO,    ///< clustering: a model with two clusters forming one mode is dropped
     MD_P_MHTC_COUNT_SIGMA,       ///< tracking: ln-count spread of the spike-count term of a continuation
+    MD_P_MHTC_LAMBDA_FIRST,      ///< tracking: λν of the first interval (neurons present at the start)
     MD_P_GUARD_ENABLE,           ///< approach guard limits motion (0: computed and reported only)
     MD_P_GUARD_GROWTH_STOP,      ///< approach guard: ln-amplitude growth per µm that blocks advancing
     MD_P_GUARD_AMP_SLOW,         ///< approach guard: amplitude from which advances are shortened

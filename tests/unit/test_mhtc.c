@@ -222,6 +222,39 @@ static void test_new_neuron_provisional_id_is_the_one_it_keeps(void)
     TEST_ASSERT_EQUAL_size_t(tracks_off, tracks_on);
 }
 
+/* Neurons present when tracking starts: with the first interval's own rate of new neurons
+ * (λν,1 > λφ) the leading hypothesis holds a track for each of them at once; with the steady
+ * rate λν < λφ it calls every cluster false and the tracks enter the lead only later. */
+static size_t tracks_after_first_interval(double lambda_first, int32_t ids[3])
+{
+    start(MHTC_TRACKER_MHTC, 4u);
+    g_st.cfg.lambda_first = lambda_first;
+    interval_with(true, true, true);
+    for (int k = 0; k < 3; ++k) {
+        ids[k] = id_of(k + 1);
+    }
+    return g_out.n_tracks;
+}
+
+static void test_neurons_present_at_start_are_tracks_at_once(void)
+{
+    mhtc_config_t steady;
+    mhtc_config_default(&steady, MHTC_TRACKER_MHTC);
+    int32_t ids[3];
+    TEST_ASSERT_EQUAL_size_t(0u, tracks_after_first_interval(steady.lambda_new, ids));
+    TEST_ASSERT_EQUAL_size_t(3u, tracks_after_first_interval(MHTC_LAMBDA_FIRST_DEFAULT, ids));
+    TEST_ASSERT_TRUE((ids[0] > 0) && (ids[1] > 0) && (ids[2] > 0));
+    TEST_ASSERT_TRUE((ids[0] != ids[1]) && (ids[1] != ids[2]) && (ids[0] != ids[2]));
+    int32_t later[3] = {0};
+    for (int k = 0; k < 3; ++k) { /* the IDs given at the first interval are the ones kept */
+        interval_with(true, true, true);
+    }
+    for (int k = 0; k < 3; ++k) {
+        later[k] = id_of(k + 1);
+    }
+    TEST_ASSERT_EQUAL_INT32_ARRAY(ids, later, 3);
+}
+
 static void test_false_cluster_not_a_track(void)
 {
     start(MHTC_TRACKER_MHTC, 3u);
@@ -674,6 +707,7 @@ int main(void)
     RUN_TEST(test_silent_neuron_keeps_id);
     RUN_TEST(test_new_neuron_new_id_and_delayed_decision);
     RUN_TEST(test_new_neuron_provisional_id_is_the_one_it_keeps);
+    RUN_TEST(test_neurons_present_at_start_are_tracks_at_once);
     RUN_TEST(test_false_cluster_not_a_track);
     RUN_TEST(test_ids_monotonic_and_pool_shared);
     RUN_TEST(test_identical_priors_fitted_once);

@@ -12,7 +12,7 @@
 ///          [--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K]
 ///          [--q-uv Q] [--init-uv A] [--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T]
 ///          [--warm-jeffreys J | --no-warm-start] [--no-provisional-ids] [--unimodal-ratio R] [--count-sigma S]
-///          [--n-scan N] [--q-move K] [--k-miss N] [--quiet]
+///          [--lambda-first F] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]
 /// Writes OUT/labels.csv, OUT/labels_online.csv, OUT/intervals.jsonl, OUT/summary.json (see docs/mhtc.md).
 #include <errno.h>
 #include <math.h>
@@ -48,6 +48,7 @@ typedef struct {
     double unimodal_ratio;
     int no_provisional_ids;
     double count_sigma;
+    double lambda_first;
     double n_scan;
     double q_move;
     double k_miss;
@@ -87,7 +88,7 @@ static int rp_usage(const char *msg)
                   "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
                   "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] "
                   "[--no-provisional-ids] "
-                  "[--unimodal-ratio R] [--count-sigma S] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
+                  "[--unimodal-ratio R] [--count-sigma S] [--lambda-first F] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
                   msg);
     return 2;
 }
@@ -160,6 +161,8 @@ static int rp_option_mhtc(rp_options_t *o, const char *a, const char *v)
         bad = rp_num(v, 0.0, 1.0, &o->unimodal_ratio);
     } else if (strcmp(a, "--count-sigma") == 0) {
         bad = rp_num(v, 0.0, 100.0, &o->count_sigma);
+    } else if (strcmp(a, "--lambda-first") == 0) {
+        bad = rp_num(v, 1e-4, 1.0, &o->lambda_first);
     } else if (strcmp(a, "--em-tol") == 0) {
         bad = rp_num(v, 1e-15, 1e-2, &o->em_tol);
     } else {
@@ -181,6 +184,7 @@ static void rp_defaults(rp_options_t *o)
     o->warm_jeffreys = MHTC_WARM_JEFFREYS_DEFAULT;
     o->unimodal_ratio = MHTC_UNIMODAL_RATIO_DEFAULT;
     o->count_sigma = MHTC_COUNT_SIGMA_DEFAULT;
+    o->lambda_first = MHTC_LAMBDA_FIRST_DEFAULT;
     o->n_scan = (double)MHTC_N_SCAN_DEFAULT;
     o->q_move = MHTC_Q_MOVE_PER_UM_DEFAULT;
     o->k_miss = 0.0; /* 0: the tracker's default */
@@ -434,7 +438,7 @@ static void rp_write_summary(FILE *f, const rp_options_t *o, uint32_t done, size
                   done, spikes, o->q_uv, o->init_uv, o->L);
     (void)fprintf(f, "  \"unimodal_ratio\": %g,\n", o->unimodal_ratio);
     (void)fprintf(f, "  \"provisional_ids\": %s,\n", (o->no_provisional_ids == 0) ? "true" : "false");
-    (void)fprintf(f, "  \"count_sigma\": %g,\n", o->count_sigma);
+    (void)fprintf(f, "  \"count_sigma\": %g,\n  \"lambda_first\": %g,\n", o->count_sigma, o->lambda_first);
     const ic_stats_t *c = &g_ws.stats;
     (void)fprintf(f, "  \"sample_rate_hz\": %u,\n  \"detections_not_kept\": %llu,\n", g_fs_hz,
                   (unsigned long long)g_not_kept);
@@ -569,6 +573,7 @@ static int rp_setup(const rp_options_t *o, int16_t **x)
     cfg.unimodal_ratio = o->unimodal_ratio;
     cfg.provisional_ids = (o->no_provisional_ids == 0);
     cfg.count_sigma = o->count_sigma;
+    cfg.lambda_first = o->lambda_first;
     cfg.n_scan = (uint32_t)o->n_scan;
     cfg.q_move_per_um = o->q_move;
     if (o->k_miss > 0.0) {

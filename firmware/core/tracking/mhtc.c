@@ -27,6 +27,7 @@ void mhtc_config_default(mhtc_config_t *cfg, mhtc_tracker_t tracker)
     cfg->g_max = MHTC_G_MAX;
     cfg->lambda_new = 0.01; /* Table 4.1 */
     cfg->lambda_false = 0.015;
+    cfg->lambda_first = MHTC_LAMBDA_FIRST_DEFAULT;
     cfg->pd.pd_max = 0.98;
     cfg->pd.pd_min = 0.75;
     cfg->pd.a = 0.6; /* §4.4.2 */
@@ -61,7 +62,8 @@ md_status_t mhtc_config_check(const mhtc_config_t *c)
     const bool pd_ok = (c->pd.pd_min > 0.0) && (c->pd.pd_min <= c->pd.pd_max) && (c->pd.pd_max < 1.0) &&
                        (c->pd.a >= 0.0) && (c->pd.b > 0.0);
     const bool ok = tracker_ok && pd_ok && (c->L >= 1u) && (c->L <= MHTC_L_MAX) && (c->g_max >= 1u) &&
-                    (c->g_max <= MHTC_G_MAX) && (c->lambda_new > 0.0) && (c->lambda_false > 0.0) && (c->beta >= 0.0) &&
+                    (c->g_max <= MHTC_G_MAX) && (c->lambda_new > 0.0) && (c->lambda_false > 0.0) && (c->lambda_first > 0.0) &&
+                    (c->beta >= 0.0) &&
                     (c->beta < 1.0) && (c->k_miss >= 1u) && (c->k_miss <= MHTC_HIST_MAX) &&
                     (c->n_scan < MHTC_HIST_MAX) && (c->nn_k_miss >= 1u) && (c->nn_k_miss <= MHTC_HIST_MAX) &&
                     (c->q_process > 0.0) && isfinite(c->q_process) && (c->init_var > 0.0) &&
@@ -385,7 +387,8 @@ static bool mhtc_associate(mhtc_state_t *st, mhtc_workspace_t *ws, mhtc_model_t 
     }
     /* in the workspace, not on the stack: this frame lies on the firmware's deepest path */
     ws->count = (mhtc_count_term_t){&m->fit.n_soft[1], ws->n_expect, ws->count_spread, st->cfg.count_sigma};
-    if (mhtc_assoc_costs(&m->fit.zeta[0][0], EM_J_MAX + 1u, m->g, pd, nt, st->cfg.lambda_new, st->cfg.lambda_false,
+    const double lambda_new = (st->n_hyp == 0u) ? st->cfg.lambda_first : st->cfg.lambda_new;
+    if (mhtc_assoc_costs(&m->fit.zeta[0][0], EM_J_MAX + 1u, m->g, pd, nt, lambda_new, st->cfg.lambda_false,
                          &ws->count, ws->cost) != MD_OK) {
         return false;
     }

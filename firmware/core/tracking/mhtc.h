@@ -66,6 +66,9 @@
 #ifndef MHTC_N_SCAN_DEFAULT
 #define MHTC_N_SCAN_DEFAULT 3u  ///< default of mhtc_config_t.n_scan (docs/mhtc.md)
 #endif
+#ifndef MHTC_LAMBDA_FIRST_DEFAULT
+#define MHTC_LAMBDA_FIRST_DEFAULT 0.03  ///< default of mhtc_config_t.lambda_first (docs/mhtc.md)
+#endif
 #ifndef MHTC_COUNT_SIGMA_DEFAULT
 #define MHTC_COUNT_SIGMA_DEFAULT 0.5  ///< default of mhtc_config_t.count_sigma (docs/mhtc.md)
 #endif
@@ -101,6 +104,8 @@ typedef struct {
     size_t g_max;                 ///< largest model, 1..MHTC_G_MAX (4)
     double lambda_new;            ///< λν (0.01)
     double lambda_false;          ///< λφ (0.015)
+    double lambda_first;          ///< λν of the first interval, where every neuron present is seen for the
+                                  ///< first time (MHTC_LAMBDA_FIRST_DEFAULT; = lambda_new: no exception)
     mhtc_pd_rule_t pd;            ///< P_d,max 0.98, P_d,min 0.75, a 0.6, b 4
     double beta;                  ///< model-class pruning threshold on P3 (0.001)
     uint32_t k_miss;              ///< consecutive misses before deletion, 1..MHTC_HIST_MAX (5)
