@@ -83,13 +83,14 @@ static double g_step_ms[REC_MAX_INTERVALS];
 
 static int rp_usage(const char *msg)
 {
-    (void)fprintf(stderr,
-                  "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
-                  "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
-                  "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] "
-                  "[--no-provisional-ids] "
-                  "[--unimodal-ratio R] [--count-sigma S] [--lambda-first F] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
-                  msg);
+    (void)fprintf(
+        stderr,
+        "mhtc-replay: %s\nusage: mhtc-replay --recording DIR/recording.json --out OUT "
+        "[--tracker mhtc|map-nn|ml-nn|gnn] [--interval SECONDS] [--channel K] [--q-uv Q] [--init-uv A] "
+        "[--L N] [--g-max G] [--evidence laplace|bic] [--em-tol T] [--warm-jeffreys J | --no-warm-start] "
+        "[--no-provisional-ids] "
+        "[--unimodal-ratio R] [--count-sigma S] [--lambda-first F] [--n-scan N] [--q-move K] [--k-miss N] [--quiet]\n",
+        msg);
     return 2;
 }
 

@@ -62,17 +62,16 @@ md_status_t mhtc_config_check(const mhtc_config_t *c)
     const bool pd_ok = (c->pd.pd_min > 0.0) && (c->pd.pd_min <= c->pd.pd_max) && (c->pd.pd_max < 1.0) &&
                        (c->pd.a >= 0.0) && (c->pd.b > 0.0);
     const bool ok = tracker_ok && pd_ok && (c->L >= 1u) && (c->L <= MHTC_L_MAX) && (c->g_max >= 1u) &&
-                    (c->g_max <= MHTC_G_MAX) && (c->lambda_new > 0.0) && (c->lambda_false > 0.0) && (c->lambda_first > 0.0) &&
-                    (c->beta >= 0.0) &&
-                    (c->beta < 1.0) && (c->k_miss >= 1u) && (c->k_miss <= MHTC_HIST_MAX) &&
-                    (c->n_scan < MHTC_HIST_MAX) && (c->nn_k_miss >= 1u) && (c->nn_k_miss <= MHTC_HIST_MAX) &&
-                    (c->q_process > 0.0) && isfinite(c->q_process) && (c->init_var > 0.0) &&
-                    (c->q_move_per_um >= 0.0) && isfinite(c->q_move_per_um) && isfinite(c->init_var) &&
-                    (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) && (c->em.tol > 0.0) &&
-                    (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) && (c->gnn_gate_chi2 > 0.0) &&
-                    (c->share_jeffreys >= 0.0) && isfinite(c->share_jeffreys) && (c->warm_jeffreys >= 0.0) &&
-                    (c->unimodal_ratio >= 0.0) && (c->unimodal_ratio <= 1.0) && (c->count_sigma >= 0.0) &&
-                    isfinite(c->count_sigma) &&
+                    (c->g_max <= MHTC_G_MAX) && (c->lambda_new > 0.0) && (c->lambda_false > 0.0) &&
+                    (c->lambda_first > 0.0) && (c->beta >= 0.0) && (c->beta < 1.0) && (c->k_miss >= 1u) &&
+                    (c->k_miss <= MHTC_HIST_MAX) && (c->n_scan < MHTC_HIST_MAX) && (c->nn_k_miss >= 1u) &&
+                    (c->nn_k_miss <= MHTC_HIST_MAX) && (c->q_process > 0.0) && isfinite(c->q_process) &&
+                    (c->init_var > 0.0) && (c->q_move_per_um >= 0.0) && isfinite(c->q_move_per_um) &&
+                    isfinite(c->init_var) && (c->em.max_iter >= 1u) && (c->em.max_iter <= MD_EM_MAX_ITER) &&
+                    (c->em.tol > 0.0) && (c->shape_prior_width > 0.0) && (c->nn_gate_sigma > 0.0) &&
+                    (c->gnn_gate_chi2 > 0.0) && (c->share_jeffreys >= 0.0) && isfinite(c->share_jeffreys) &&
+                    (c->warm_jeffreys >= 0.0) && (c->unimodal_ratio >= 0.0) && (c->unimodal_ratio <= 1.0) &&
+                    (c->count_sigma >= 0.0) && isfinite(c->count_sigma) &&
                     ((c->evidence == CLUSTER_EVIDENCE_LAPLACE) || (c->evidence == CLUSTER_EVIDENCE_BIC));
     return ok ? MD_OK : MD_E_ARG;
 }
@@ -388,8 +387,8 @@ static bool mhtc_associate(mhtc_state_t *st, mhtc_workspace_t *ws, mhtc_model_t 
     /* in the workspace, not on the stack: this frame lies on the firmware's deepest path */
     ws->count = (mhtc_count_term_t){&m->fit.n_soft[1], ws->n_expect, ws->count_spread, st->cfg.count_sigma};
     const double lambda_new = (st->n_hyp == 0u) ? st->cfg.lambda_first : st->cfg.lambda_new;
-    if (mhtc_assoc_costs(&m->fit.zeta[0][0], EM_J_MAX + 1u, m->g, pd, nt, lambda_new, st->cfg.lambda_false,
-                         &ws->count, ws->cost) != MD_OK) {
+    if (mhtc_assoc_costs(&m->fit.zeta[0][0], EM_J_MAX + 1u, m->g, pd, nt, lambda_new, st->cfg.lambda_false, &ws->count,
+                         ws->cost) != MD_OK) {
         return false;
     }
     ws->murty.solves = 0u;
