@@ -33,6 +33,7 @@ static double g_y[N_MAX * D];
 static double g_xi[D * D];
 static uint8_t g_truth[N_MAX]; /* generating neuron per spike (0 = outlier) */
 static size_t g_n;
+static double g_move_um; /* electrode travel before the next interval */
 static md_rng_t g_rng;
 
 /* Neuron templates: a negative peak and a positive rebound, shape set by (centre, width, amplitude). */
@@ -81,7 +82,7 @@ static md_status_t run_interval(void)
     TEST_ASSERT_EQUAL_INT(MD_OK, pca_fit(&g_wave[0][0], g_n, DW, DW, D, &g_pw, &g_basis));
     TEST_ASSERT_EQUAL_INT(MD_OK, pca_project_all(&g_basis, &g_wave[0][0], g_n, DW, g_y));
     TEST_ASSERT_EQUAL_INT(MD_OK, qm_noise_feature_cov(&g_basis, &g_noise[0][0], N_NOISE, DW, g_xi));
-    const mhtc_input_t in = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0, 0.0};
+    const mhtc_input_t in = {g_y, g_n, &g_wave[0][0], DW, &g_basis, g_xi, 10.0, NULL, 0.0, g_move_um};
     const md_status_t rc = mhtc_update(&g_st, &in, &g_ws, &g_out);
     g_n = 0u;
     return rc;
@@ -118,6 +119,7 @@ static void start(mhtc_tracker_t tracker, uint64_t seed)
     TEST_ASSERT_EQUAL_INT(MD_OK, mhtc_init(&g_st, &cfg));
     md_rng_seed(&g_rng, seed);
     g_n = 0u;
+    g_move_um = 0.0;
 }
 
 /* Runs one interval with the given neurons present; keeps truth labels for id_of(). */
@@ -579,6 +581,34 @@ static void test_second_track_of_a_neuron_merges_into_the_older(void)
     TEST_ASSERT_GREATER_THAN_UINT32(0u, g_st.stats.tracks_merged);
 }
 
+/* A move scales a neuron's waveform by an uncertain gain: its cluster lands far from the
+ * prediction in units of its own spread but within the gain's. A lineage that calls the track
+ * missed there and starts a new one on the cluster holds the neuron twice; with the missed
+ * track's predicted spread in the one-mode test that pair is one track, the older ID. */
+static void test_new_track_within_a_missed_tracks_spread_is_the_same_neuron(void)
+{
+    start(MHTC_TRACKER_MHTC, 41u);
+    for (int k = 0; k < 3; ++k) {
+        memset(g_truth, 0, sizeof g_truth);
+        add_outliers(4u);
+        add_scaled_spikes(1.0, 100u);
+        TEST_ASSERT_EQUAL_INT(MD_OK, run_interval());
+    }
+    const int32_t id = id_of(1);
+    TEST_ASSERT_TRUE(id > 0);
+    g_move_um = 20.0; /* gain spread 0.02/µm · 20 µm = 40 % (1 σ) */
+    memset(g_truth, 0, sizeof g_truth);
+    add_outliers(4u);
+    add_scaled_spikes(1.3, 100u);
+    TEST_ASSERT_EQUAL_INT(MD_OK, run_interval());
+    TEST_ASSERT_EQUAL_INT32(id, id_of(1));
+    TEST_ASSERT_GREATER_THAN_UINT32(0u, g_st.stats.tracks_merged);
+    for (size_t i = 0u; i < g_st.n_hyp; ++i) { /* no hypothesis holds the neuron twice */
+        TEST_ASSERT_EQUAL_UINT8(1u, g_st.hyp[i].n_tracks);
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)id, g_st.pool[g_st.hyp[i].track[0]].id);
+    }
+}
+
 static void test_empty_interval_and_bad_input(void)
 {
     start(MHTC_TRACKER_MHTC, 5u);
@@ -716,6 +746,7 @@ int main(void)
     RUN_TEST(test_split_class_seeded_from_another_parent);
     RUN_TEST(test_one_mode_is_one_track);
     RUN_TEST(test_second_track_of_a_neuron_merges_into_the_older);
+    RUN_TEST(test_new_track_within_a_missed_tracks_spread_is_the_same_neuron);
     RUN_TEST(test_empty_interval_and_bad_input);
     RUN_TEST(test_baselines_run_and_nn_loses_silent_neuron);
     RUN_TEST(test_int16_input_equals_double_input);

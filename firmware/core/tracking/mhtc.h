@@ -69,6 +69,11 @@
 #ifndef MHTC_LAMBDA_FIRST_DEFAULT
 #define MHTC_LAMBDA_FIRST_DEFAULT 0.03  ///< default of mhtc_config_t.lambda_first (docs/mhtc.md)
 #endif
+#ifndef MHTC_MISSED_SPREAD
+/// One-mode test of a missed track and a track new in this interval: the missed one is spread by
+/// its predicted state (docs/mhtc.md); 0 = its cluster alone.
+#define MHTC_MISSED_SPREAD 1
+#endif
 #ifndef MHTC_COUNT_SIGMA_DEFAULT
 #define MHTC_COUNT_SIGMA_DEFAULT 0.5  ///< default of mhtc_config_t.count_sigma (docs/mhtc.md)
 #endif

@@ -278,14 +278,29 @@ static void mhtc_record_view(const mhtc_track_t *t, const pca_basis_t *b, double
     mhtc_map_sigma(t, b->b, b->d, b->d_w, cov);
 }
 
-/* Whether missed record `a`, already seen through B^k in ws->pair_*[0] (mhtc_record_view), and
- * detected record `det` form one mode (cfg.unimodal_ratio). */
-static bool mhtc_same_mode(const mhtc_state_t *st, const pca_basis_t *b, mhtc_workspace_t *ws, const mhtc_track_t *a,
-                           const mhtc_track_t *det)
+/* Whether missed staged record `missed` and detected staged record `det` of one hypothesis form
+ * one mode (cfg.unimodal_ratio), both seen through B^k. When `det` is a track started in this
+ * interval, the missed one is seen with its predicted state's spread added, Σ_j + HΛHᵀ (eq. 4.13
+ * without R_j): where its neuron's cluster lies now is known only that well (after a move the
+ * gain uncertainty along x̂ is wide), and a lineage that calls the track missed and starts a new
+ * one on a cluster within that spread holds the neuron twice. Two tracks that both lived before
+ * this interval are compared by their clusters alone: two neurons passing close by each other
+ * are within each other's spread. */
+static bool mhtc_same_mode(const mhtc_state_t *st, const pca_basis_t *b, mhtc_workspace_t *ws, size_t missed,
+                           size_t det)
 {
-    mhtc_record_view(det, b, ws->pair_mean[1], ws->pair_cov[1]);
+    const mhtc_track_t *a = &ws->staged[missed];
+    const mhtc_track_t *o = &ws->staged[det];
+    mhtc_record_view(a, b, ws->pair_mean[0], ws->pair_cov[0]);
+    if ((MHTC_MISSED_SPREAD != 0) && (ws->staged_src[det] < 0) &&
+        (kf_measure(&a->kf, b->b, b->d, ws->pair_mean[1], ws->pair_cov[1]) == MD_OK)) {
+        for (size_t i = 0u; i < b->d * b->d; ++i) {
+            ws->pair_cov[0][i] += ws->pair_cov[1][i];
+        }
+    }
+    mhtc_record_view(o, b, ws->pair_mean[1], ws->pair_cov[1]);
     const double wa = (a->n_last > 1.0) ? a->n_last : 1.0;
-    const double wb = (det->n_last > 1.0) ? det->n_last : 1.0;
+    const double wb = (o->n_last > 1.0) ? o->n_last : 1.0;
     double r = 0.0;
     return (em_gauss_ridge_ratio(b->d, wa, ws->pair_mean[0], ws->pair_cov[0], wb, ws->pair_mean[1], ws->pair_cov[1],
                                  &r) == MD_OK) &&
@@ -346,12 +361,9 @@ static void mhtc_drop_second_tracks(mhtc_state_t *st, const mhtc_input_t *in, mh
     for (size_t j = 0u; j < h->n_tracks; ++j) { /* merges rewrite entries in place; drops are compacted after */
         const size_t t = h->track[j];
         size_t twin = MHTC_POOL;
-        if (ws->staged[t].cluster == 0u) { /* a missed record: seen through B^k once for every pair */
-            mhtc_record_view(&ws->staged[t], in->basis, ws->pair_mean[0], ws->pair_cov[0]);
-        }
         for (size_t q = 0u; (q < h->n_tracks) && (twin == MHTC_POOL) && (ws->staged[t].cluster == 0u); ++q) {
             const mhtc_track_t *o = &ws->staged[h->track[q]];
-            twin = ((o->cluster > 0u) && mhtc_same_mode(st, in->basis, ws, &ws->staged[t], o) &&
+            twin = ((o->cluster > 0u) && mhtc_same_mode(st, in->basis, ws, t, h->track[q]) &&
                     mhtc_one_neuron_count(st, ws, t, h->track[q]))
                        ? q
                        : MHTC_POOL;
