@@ -218,6 +218,11 @@ md_status_t bench_setup(void)
     mc.L = 8u;
     mc.g_max = 4u;
     mc.evidence = CLUSTER_EVIDENCE_LAPLACE;
+    /* The busy case: with the first interval's own rate of new neurons (λν,1) the three
+     * neurons are tracks from the first interval on and the hypotheses agree by the measured
+     * step (two model hypotheses); with λν there they still disagree (twelve), as they do
+     * while a neuron appears. The budget is for the busy step. */
+    mc.lambda_first = mc.lambda_new;
     sfsm_config_t sc;
     sfsm_config_default(&sc);
     md_status_t st = mhtc_init(&g_mh, &mc);
