@@ -121,8 +121,16 @@ md_status_t md_servo_calib(md_servo_t *s, uint8_t index, uint8_t count, double v
     if ((!mid && !half && index >= count) || (half && !(value > 0.0))) {
         return MD_E_ARG;
     }
-    if (count != s->cal_count) {
-        s->cal_count = count; /* a new set: start collecting again */
+    if (s->calibrated && (count != s->cal_count) && (count != s->cal_pend_count)) {
+        s->cal_pend_count = count; /* once: a corrupted count would reset to an unconfirmed set */
+        s->stats.cal_unconfirmed++;
+        return MD_OK;
+    }
+    if (count == s->cal_count) {
+        s->cal_pend_count = 0u;
+    } else {
+        s->cal_count = count; /* a new set (confirmed while calibrated): start collecting again */
+        s->cal_pend_count = 0u;
         s->cal_have = 0u;
         s->cal_pend_have = 0u;
         s->calibrated = false;

@@ -41,7 +41,8 @@
 /// - depths are the median of the readings (robust to Hall glitches);
 /// - no calibration or no fresh readings: no motion;
 /// - once calibrated, a coefficient that arrives with another value is only
-///   applied when the next repetition carries the same value: one corrupted
+///   applied when the next repetition carries the same value, and another
+///   coefficient count only when the next frame carries it too: one corrupted
 ///   HALL_CALIB payload that passed the frame checks cannot shift the depth
 ///   (docs/fault-campaign.md, bus_corrupt).
 /// The caller decides WHETHER to move at all (SFSM, node state, recording).
@@ -150,6 +151,7 @@ typedef struct {
     bool calibrated;
     double cal_pend[MD_SERVO_CAL_MAX + 2u];  ///< changed values awaiting confirmation; [MAX] mid, [MAX+1] half
     uint32_t cal_pend_have;                  ///< bits as cal_have: which cal_pend entries are set
+    uint8_t cal_pend_count;                  ///< another CoeffCount seen once while calibrated (0: none)
     /* readings (raw codes; converted when averaged, so a new calibration applies at once) */
     uint16_t code[MD_SERVO_AVG_MAX];
     uint8_t code_head, code_count;
@@ -203,8 +205,11 @@ md_status_t md_servo_configure(md_servo_t *s, const md_servo_config_t *cfg);
 /// are staged; then the calibration is in use. After that, a value that
 /// differs from the one in use waits for the next repetition and is applied
 /// only if that carries the same value (stats.cal_unconfirmed,
-/// stats.cal_changes). A different count drops the calibration and starts a
-/// new set (no motion until it is complete). MD_E_ARG on a non-finite value,
+/// stats.cal_changes). A different count, confirmed by the very next frame
+/// (while calibrated; at once otherwise), drops the calibration and starts a
+/// new set (no motion until it is complete); a count seen once is ignored and
+/// counted as unconfirmed, since a new set staged from it would be taken
+/// without confirmation. MD_E_ARG on a non-finite value,
 /// count 0 or > MD_SERVO_CAL_MAX, an index out of range, or code_half <= 0. O(1).
 md_status_t md_servo_calib(md_servo_t *s, uint8_t index, uint8_t count, double value);
 

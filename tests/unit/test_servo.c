@@ -175,10 +175,36 @@ static void test_calibration_staging(void)
     TEST_ASSERT_TRUE(s.calibrated);
     TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, (uint16_t)(CODE_MID + 50.0), &d));
     TEST_ASSERT_DOUBLE_WITHIN(1e-9, 2810.0, d);
-    /* a set with another count starts over */
+    /* a set with another count starts over once the next frame confirms the count */
     TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, 0u, 3u, 1.0));
+    TEST_ASSERT_TRUE(s.calibrated);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, 1u, 3u, 1.0));
     TEST_ASSERT_FALSE(s.calibrated);
     TEST_ASSERT_EQUAL_INT(MD_E_STATE, md_servo_code_to_depth_um(&s, 1u, &d));
+}
+
+/* bus_corrupt in the fault campaign: one HALL_CALIB frame whose count byte was
+ * corrupted (10 -> 14) dropped the calibration in use, and the next set,
+ * staged without confirmation, carried a corrupted coefficient (2196.9 ->
+ * 2452.9): the depth was 186 um off for two cycles. Another count now needs
+ * the very next frame to carry it too. */
+static void test_changed_count_needs_the_next_frame(void)
+{
+    md_servo_t s;
+    servo_new(&s);
+    calibrate(&s);
+    double d0 = 0.0, d = 0.0;
+    const uint16_t code = (uint16_t)(CODE_MID + 500.0);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d0));
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, 1u, 6u, 1.0)); /* stray count */
+    TEST_ASSERT_TRUE(s.calibrated);
+    TEST_ASSERT_EQUAL_UINT32(1u, s.stats.cal_unconfirmed);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, 0u, 2u, 2800.0)); /* the set in use goes on */
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, 1u, 6u, 1.0));    /* not the next frame: stray again */
+    TEST_ASSERT_TRUE(s.calibrated);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, d0, d);
+    TEST_ASSERT_EQUAL_UINT32(2u, s.stats.cal_unconfirmed);
 }
 
 /* bus_corrupt in the fault campaign: one HALL_CALIB payload corrupted within
@@ -593,6 +619,7 @@ int main(void)
     RUN_TEST(test_calibration_staging);
     RUN_TEST(test_cubic_calibration_horner);
     RUN_TEST(test_changed_calibration_needs_a_confirming_repetition);
+    RUN_TEST(test_changed_count_needs_the_next_frame);
     RUN_TEST(test_averaging);
     RUN_TEST(test_converges_both_directions_and_learns);
     RUN_TEST(test_region_clamps_step_max_and_window);
