@@ -183,6 +183,16 @@ static void test_calibration_staging(void)
     TEST_ASSERT_EQUAL_INT(MD_E_STATE, md_servo_code_to_depth_um(&s, 1u, &d));
 }
 
+/* A calibrated servo, a code 500 above code_mid and its depth. */
+static uint16_t calibrated_with_depth(md_servo_t *s, double *depth_um)
+{
+    servo_new(s);
+    calibrate(s);
+    const uint16_t code = (uint16_t)(CODE_MID + 500.0);
+    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(s, code, depth_um));
+    return code;
+}
+
 /* bus_corrupt in the fault campaign: one HALL_CALIB frame whose count byte was
  * corrupted (10 -> 14) dropped the calibration in use, and the next set,
  * staged without confirmation, carried a corrupted coefficient (2196.9 ->
@@ -191,11 +201,8 @@ static void test_calibration_staging(void)
 static void test_changed_count_needs_the_next_frame(void)
 {
     md_servo_t s;
-    servo_new(&s);
-    calibrate(&s);
     double d0 = 0.0, d = 0.0;
-    const uint16_t code = (uint16_t)(CODE_MID + 500.0);
-    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d0));
+    const uint16_t code = calibrated_with_depth(&s, &d0);
     TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, 1u, 6u, 1.0)); /* stray count */
     TEST_ASSERT_TRUE(s.calibrated);
     TEST_ASSERT_EQUAL_UINT32(1u, s.stats.cal_unconfirmed);
@@ -214,11 +221,8 @@ static void test_changed_count_needs_the_next_frame(void)
 static void test_changed_calibration_needs_a_confirming_repetition(void)
 {
     md_servo_t s;
-    servo_new(&s);
-    calibrate(&s);
     double d0 = 0.0, d = 0.0;
-    const uint16_t code = (uint16_t)(CODE_MID + 500.0);
-    TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d0));
+    const uint16_t code = calibrated_with_depth(&s, &d0);
     /* one corrupted value: held back, the depth does not move */
     TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_calib(&s, MD_SERVO_CAL_INDEX_HALF, 2u, HALF * 1.37));
     TEST_ASSERT_EQUAL_INT(MD_OK, md_servo_code_to_depth_um(&s, code, &d));
