@@ -609,6 +609,57 @@ static void test_new_track_within_a_missed_tracks_spread_is_the_same_neuron(void
     }
 }
 
+/* The leading hypothesis' record of track `id` (NULL if it holds none). */
+static const mhtc_track_t *leading_record(int32_t id)
+{
+    const mhtc_hyp_t *h = &g_st.hyp[0];
+    for (size_t j = 0u; j < h->n_tracks; ++j) {
+        if (g_st.pool[h->track[j]].id == (uint32_t)id) {
+            return &g_st.pool[h->track[j]];
+        }
+    }
+    return NULL;
+}
+
+static void interval_of_neuron(size_t spikes)
+{
+    memset(g_truth, 0, sizeof g_truth);
+    add_outliers(4u);
+    add_spikes(1, spikes);
+    TEST_ASSERT_EQUAL_INT(MD_OK, run_interval());
+}
+
+/* A record keeps the counts of its last three detections (a missed interval adds none), so the
+ * count term's reference after counts 100, 100, 40 is the neuron's 100, not the dip's 40. */
+static void test_count_reference_follows_the_detections(void)
+{
+    start(MHTC_TRACKER_MHTC, 43u);
+    interval_of_neuron(100u);
+    const int32_t id = id_of(1);
+    TEST_ASSERT_TRUE(id > 0);
+    const mhtc_track_t *t = leading_record(id);
+    TEST_ASSERT_NOT_NULL(t);
+    TEST_ASSERT_TRUE((t->n_prev[0] < 0.0) && (t->n_prev[1] < 0.0)); /* a new track has no history */
+    interval_of_neuron(100u);
+    interval_of_neuron(100u);
+    interval_of_neuron(40u);
+    TEST_ASSERT_EQUAL_INT32(id, id_of(1));
+    t = leading_record(id);
+    TEST_ASSERT_NOT_NULL(t);
+    TEST_ASSERT_DOUBLE_WITHIN(6.0, 40.0, t->n_last);
+    TEST_ASSERT_DOUBLE_WITHIN(6.0, 100.0, t->n_prev[0]);
+    TEST_ASSERT_DOUBLE_WITHIN(6.0, 100.0, t->n_prev[1]);
+    TEST_ASSERT_DOUBLE_WITHIN(6.0, 100.0, mhtc_count_reference(t->n_last, t->n_prev));
+    memset(g_truth, 0, sizeof g_truth); /* the neuron silent: its record is missed, not detected */
+    add_outliers(4u);
+    TEST_ASSERT_EQUAL_INT(MD_OK, run_interval());
+    t = leading_record(id);
+    TEST_ASSERT_NOT_NULL(t);
+    TEST_ASSERT_EQUAL_UINT8(1u, t->misses);
+    TEST_ASSERT_DOUBLE_WITHIN(6.0, 40.0, t->n_last);
+    TEST_ASSERT_DOUBLE_WITHIN(6.0, 100.0, t->n_prev[1]);
+}
+
 static void test_empty_interval_and_bad_input(void)
 {
     start(MHTC_TRACKER_MHTC, 5u);
@@ -747,6 +798,7 @@ int main(void)
     RUN_TEST(test_one_mode_is_one_track);
     RUN_TEST(test_second_track_of_a_neuron_merges_into_the_older);
     RUN_TEST(test_new_track_within_a_missed_tracks_spread_is_the_same_neuron);
+    RUN_TEST(test_count_reference_follows_the_detections);
     RUN_TEST(test_empty_interval_and_bad_input);
     RUN_TEST(test_baselines_run_and_nn_loses_silent_neuron);
     RUN_TEST(test_int16_input_equals_double_input);

@@ -273,6 +273,22 @@ static void test_count_term(void)
     TEST_ASSERT_EQUAL_INT(MD_E_ARG, mhtc_assoc_costs(&zeta[0][0], 2u, 2u, pd, 1u, 0.01, 0.015, &narrow, on));
 }
 
+/* A track's count reference: the median of its last three detected counts, its last count while
+ * it has fewer; one interval's dip (a split cluster, a neuron silent for part of it) is outvoted. */
+static void test_count_reference_is_the_median_of_three_detections(void)
+{
+    const double full[2] = {100.0, 96.0};
+    TEST_ASSERT_EQUAL_DOUBLE(96.0, mhtc_count_reference(40.0, full));
+    const double dip[2] = {40.0, 100.0};
+    TEST_ASSERT_EQUAL_DOUBLE(100.0, mhtc_count_reference(104.0, dip));
+    const double rising[2] = {60.0, 20.0};
+    TEST_ASSERT_EQUAL_DOUBLE(60.0, mhtc_count_reference(100.0, rising));
+    const double one_before[2] = {100.0, -1.0};
+    TEST_ASSERT_EQUAL_DOUBLE(40.0, mhtc_count_reference(40.0, one_before));
+    const double none[2] = {-1.0, -1.0};
+    TEST_ASSERT_EQUAL_DOUBLE(40.0, mhtc_count_reference(40.0, none));
+}
+
 static void test_pd_rule(void)
 {
     const mhtc_pd_rule_t rule = {0.98, 0.75, 0.6, 4.0};
@@ -298,6 +314,7 @@ int main(void)
     RUN_TEST(test_prop_4_2_product_of_a);
     RUN_TEST(test_costs_forbid_off_diagonal_and_bad_input);
     RUN_TEST(test_count_term);
+    RUN_TEST(test_count_reference_is_the_median_of_three_detections);
     RUN_TEST(test_pd_rule);
     RUN_TEST(test_log_norm);
     return UNITY_END();

@@ -213,7 +213,8 @@ size_t mhtc_fill_targets(const mhtc_state_t *st, mhtc_workspace_t *ws, size_t p)
         memcpy(t->s_cov, ws->pred_s[r], sizeof t->s_cov);
         memcpy(t->cluster_cov, ws->pred_c[r], sizeof t->cluster_cov);
         t->p_detect = st->pool[r].p_detect;
-        ws->n_expect[j] = st->pool[r].n_last;
+        ws->n_expect[j] = MHTC_COUNT_MEDIAN ? mhtc_count_reference(st->pool[r].n_last, st->pool[r].n_prev)
+                                            : st->pool[r].n_last;
         /* each miss makes the rate less certain (a neuron that pauses may fire again only partly) */
         ws->count_spread[j] = 1.0 + (double)st->pool[r].misses;
     }

@@ -74,6 +74,11 @@
 /// its predicted state (docs/mhtc.md); 0 = its cluster alone.
 #define MHTC_MISSED_SPREAD 1
 #endif
+#ifndef MHTC_COUNT_MEDIAN
+/// The spike-count term's reference m_j is the median of the track's last three detected counts
+/// (mhtc_count_reference, docs/mhtc.md); 0 = its last count alone.
+#define MHTC_COUNT_MEDIAN 1
+#endif
 #ifndef MHTC_COUNT_SIGMA_DEFAULT
 #define MHTC_COUNT_SIGMA_DEFAULT 0.5  ///< default of mhtc_config_t.count_sigma (docs/mhtc.md)
 #endif
@@ -157,13 +162,14 @@ typedef struct {
     kf_state_t kf;                         ///< mean waveform and its covariance
     float sigma_vec[KF_D_MAX][KF_DW_MAX];  ///< last Σ_j in waveform space: Σ s_i u_i u_iᵀ
     double sigma_val[KF_D_MAX];
-    double n_last;    ///< spikes n_j of the last detection
-    double p_detect;  ///< P_d,j for the next interval
-    double rate_hz;   ///< firing rate in the latest interval (0 if missed)
-    uint32_t id;      ///< stable ID, never reused on this electrode
-    uint32_t born;    ///< interval of the first detection
-    uint16_t refs;    ///< hypotheses referencing this record
-    uint8_t misses;   ///< consecutive missed detections
+    double n_last;     ///< spikes n_j of the last detection
+    double n_prev[2];  ///< spikes of the two detections before it, latest first (−1: none yet)
+    double p_detect;   ///< P_d,j for the next interval
+    double rate_hz;    ///< firing rate in the latest interval (0 if missed)
+    uint32_t id;       ///< stable ID, never reused on this electrode
+    uint32_t born;     ///< interval of the first detection
+    uint16_t refs;     ///< hypotheses referencing this record
+    uint8_t misses;    ///< consecutive missed detections
     uint8_t sigma_rank;
     uint8_t cluster;  ///< cluster (1..G) of the latest interval, 0 = missed
 } mhtc_track_t;

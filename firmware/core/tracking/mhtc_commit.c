@@ -255,6 +255,8 @@ static void mhtc_make_record(mhtc_state_t *st, const mhtc_input_t *in, mhtc_work
             t->born = st->interval + 1u;
         }
         mhtc_store_sigma(t, &m->fit.params, g, b);
+        t->n_prev[1] = (src >= 0) ? t->n_prev[0] : -1.0;
+        t->n_prev[0] = (src >= 0) ? t->n_last : -1.0;
         t->n_last = m->fit.n_soft[g];
         t->misses = 0u;
         t->cluster = (uint8_t)g;

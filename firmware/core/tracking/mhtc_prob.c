@@ -65,6 +65,14 @@ md_status_t mhtc_log_p3(const double *pd, size_t n_t, size_t g, double lambda0, 
     return MD_OK;
 }
 
+double mhtc_count_reference(double n_last, const double prev[2])
+{
+    if (!(prev[1] >= 0.0) || !(prev[0] >= 0.0)) {
+        return n_last;
+    }
+    return fmax(fmin(n_last, prev[0]), fmin(fmax(n_last, prev[0]), prev[1])); /* median of three */
+}
+
 /* ln of the count term of cluster r continuing target j (mhtc_count_term_t); 0 when it is off. */
 static double mhtc_log_count_weight(const mhtc_count_term_t *count, size_t r, size_t j)
 {

@@ -41,6 +41,15 @@ double mhtc_pd_next(const mhtc_pd_rule_t *rule, double pd_prev, double rate_hz);
 /// MD_E_ARG on bad input (pd outside (0, 1), λ0 ≤ 0, n_t > MHTC_PROB_NT_MAX).
 md_status_t mhtc_log_p3(const double *pd, size_t n_t, size_t g, double lambda0, double *log_p3);
 
+/// The count m_j a continuation of a track is compared with (mhtc_count_term_t):
+/// the median of its last detected count n_last and the two before it
+/// (prev[0] the later; a negative entry is a detection the track has not had),
+/// n_last alone while the track has fewer than three. One interval's count is
+/// not a neuron's rate: a model that splits the neuron's cluster in two, or a
+/// neuron silent for part of the interval, gives a count that the next
+/// interval's full cluster would otherwise be judged against.
+double mhtc_count_reference(double n_last, const double prev[2]);
+
 /// Assignment costs A* = -log A (eq. 4.25) of one model hypothesis with g
 /// clusters and the parent's n_t targets: cost is g × (n_t + 2g), row-major.
 /// zeta: row r holds ζ_{r,0..n_t} (eq. 4.26, column 0 the uniform component)
@@ -50,7 +59,7 @@ md_status_t mhtc_log_p3(const double *pd, size_t n_t, size_t g, double lambda0, 
 /// The spike-count term of a continuation (ours, not the thesis'): a neuron
 /// fires at about the same rate from one interval to the next, so cluster r
 /// continuing target j is weighted by exp(-ln²((n_r + 1) / (m_j + 1)) / (2σ_j²)),
-/// n_r the cluster's spike count, m_j the target's at its last detection,
+/// n_r the cluster's spike count, m_j the target's (mhtc_count_reference),
 /// σ_j = σ·s_j. At most 1: it only penalises a continuation whose count
 /// departs from the track's, such as a neuron's few attenuated burst spikes
 /// taking over its track. Births and false alarms are not weighted.
