@@ -37,10 +37,14 @@ ns_flags=-rn
 if [ "$unprivileged" -eq 0 ] && [ "$(id -u)" -eq 0 ] && unshare -n true 2>/dev/null; then
     ns_flags=-n
 fi
-if ! unshare $ns_flags true 2>/dev/null; then
-    echo "netns-run: cannot create a network namespace (unshare -rn failed): run as root," >&2
-    echo "netns-run: or allow unprivileged user namespaces (kernel.unprivileged_userns_clone=1," >&2
-    echo "netns-run: kernel.apparmor_restrict_unprivileged_userns=0 on Ubuntu >= 23.10)" >&2
+if ! why=$(unshare $ns_flags true 2>&1); then
+    echo "netns-run: cannot create a network namespace (unshare $ns_flags: $why)" >&2
+    if [ "$ns_flags" = "-rn" ]; then
+        echo "netns-run: a user namespace needs root or unprivileged user namespaces" >&2
+        echo "netns-run: (kernel.unprivileged_userns_clone=1; kernel.apparmor_restrict_unprivileged_userns=0" >&2
+        echo "netns-run: on Ubuntu >= 23.10), and the kernel refuses one to any process in a chroot:" >&2
+        echo "netns-run: run the tests on the host, in a container or a VM instead" >&2
+    fi
     exit 125
 fi
 # -r maps the caller to root inside, so this also works for a non-root user
