@@ -54,7 +54,9 @@ log_has_frames() {
 wait_for_receiver() {
     local i
     for ((i = 0; i < 50; i++)); do
-        grep -qs 'vcan0' /proc/net/can/rcvlist_all && return 0
+        # an entry line ("   vcan0  000  00000000 ..."), not the "(vcan0: no entry)" line
+        # the list shows before any socket is bound
+        grep -qsE '^ +vcan0 ' /proc/net/can/rcvlist_all && return 0
         sleep 0.1
     done
     return 1
