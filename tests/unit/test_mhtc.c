@@ -650,9 +650,7 @@ static void test_count_reference_follows_the_detections(void)
     TEST_ASSERT_DOUBLE_WITHIN(6.0, 100.0, t->n_prev[0]);
     TEST_ASSERT_DOUBLE_WITHIN(6.0, 100.0, t->n_prev[1]);
     TEST_ASSERT_DOUBLE_WITHIN(6.0, 100.0, mhtc_count_reference(t->n_last, t->n_prev));
-    memset(g_truth, 0, sizeof g_truth); /* the neuron silent: its record is missed, not detected */
-    add_outliers(4u);
-    TEST_ASSERT_EQUAL_INT(MD_OK, run_interval());
+    interval_of_neuron(0u); /* the neuron silent: its record is missed, not detected */
     t = leading_record(id);
     TEST_ASSERT_NOT_NULL(t);
     TEST_ASSERT_EQUAL_UINT8(1u, t->misses);
